@@ -1,0 +1,84 @@
+# strapdown_ros developer entry points.  `make help` lists them.
+#
+#   make run    main job: generate the default scenario into out/default
+#   make test   the test command (ruff, then pytest); what CI runs (.ci/run)
+#
+# Everything runs in .venv, created from pinned requirements by `make setup` (incremental).
+
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+# Interpreter used to create .venv: python3.11 when present, else python3 (override: PYTHON=...).
+PYTHON ?= $(shell command -v python3.11 >/dev/null 2>&1 && echo python3.11 || echo python3)
+
+VENV         := .venv
+VENV_ABS     := $(CURDIR)/$(VENV)
+VPY          := $(VENV_ABS)/bin/python
+SETUP_STAMP  := $(VENV)/.setup.stamp
+PREFIX_STAMP := $(VENV)/.ament-prefix.stamp
+REQUIREMENTS := requirements/base.txt requirements/dev.txt requirements/constraints.txt
+CONSTRAINTS  := -c requirements/constraints.txt
+# Files installed under .venv/share/strapdown_ros (re-run the prefix step when they change).
+SHARE_FILES  := package.xml resource/strapdown_ros $(shell find config launch -type f 2>/dev/null)
+PIP_QUIET    ?= -q
+
+# What the venv needs to act as a ROS 2 Jazzy install prefix (rclpy comes from PyPI wheels).
+export AMENT_PREFIX_PATH := $(VENV_ABS)
+export PATH := $(VENV_ABS)/bin:$(PATH)
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
+.PHONY: help setup test lint bench run clean distclean
+
+help:
+	@echo "make setup      create/update .venv (pinned deps, editable package, ament prefix)"
+	@echo "make run        generate the default scenario into out/default"
+	@echo "make test       ruff check + pytest (the CI command)"
+	@echo "make lint       ruff check only"
+	@echo "make bench      run every bench/bench_*.py"
+	@echo "make clean      remove outputs and caches; make distclean also removes .venv"
+	@echo "PYTHON=$(PYTHON)"
+
+setup: $(SETUP_STAMP) $(PREFIX_STAMP)
+
+$(SETUP_STAMP): $(REQUIREMENTS) setup.py setup.cfg
+	@if [ ! -x "$(VPY)" ]; then \
+	    echo "creating $(VENV) with $(PYTHON) ($$($(PYTHON) --version 2>&1))"; \
+	    $(PYTHON) -m venv $(VENV); \
+	fi
+	$(VPY) -m pip install $(PIP_QUIET) --upgrade pip $(CONSTRAINTS)
+	$(VPY) -m pip install $(PIP_QUIET) -r requirements/dev.txt $(CONSTRAINTS)
+	$(VPY) -m pip install $(PIP_QUIET) --no-deps --no-build-isolation -e .
+	@touch $@
+
+$(PREFIX_STAMP): $(SETUP_STAMP) tools/install_ament_prefix.py $(SHARE_FILES)
+	$(VPY) tools/install_ament_prefix.py --symlink
+	@touch $@
+
+lint: setup
+	$(VPY) -m ruff check .
+
+# Lint and tests both run; the target fails if either failed.
+test: setup
+	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
+	$(VPY) -m pytest $(PYTEST_ARGS) || exit $$?; \
+	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
+
+bench: setup
+	@found=0; \
+	for f in bench/bench_*.py; do \
+	    [ -e "$$f" ] || continue; found=1; \
+	    echo "== $$f"; $(VPY) "$$f" || exit $$?; \
+	done; \
+	[ $$found = 1 ] || echo "no bench/bench_*.py yet"
+
+run: setup
+	strapdown-sim generate config/scenarios/default.yaml --out out/default --force
+
+clean:
+	rm -rf out build install log .pytest_cache .ruff_cache *.egg-info
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

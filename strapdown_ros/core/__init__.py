@@ -1,0 +1,1 @@
+"""ROS-free mathematical core of strapdown_ros (numpy/scipy only)."""
