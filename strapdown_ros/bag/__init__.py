@@ -1,0 +1,2 @@
+"""rosbag2 input/output: bulk CDR codec (:mod:`.cdr`), bag writer (:mod:`.writer`) and reader
+(:mod:`.reader`). Uses ``rosbags`` (no rclpy)."""

@@ -1,0 +1,408 @@
+"""Bulk CDR codec of the project's fixed-layout messages (numpy, no per-message Python work).
+
+ROS 2 serializes messages as plain CDR (XCDR1) little endian: a 4-byte encapsulation header
+``00 01 00 00`` (CDR_LE, options 0) followed by the fields, each primitive aligned to its size
+relative to the first byte *after* the header. A string is a ``uint32`` length (counting the
+terminating NUL), the UTF-8 bytes and the NUL. There is no trailing padding.
+
+With constant frame ids, every message of a topic has the same length and the same field
+offsets, so N messages are one ``(N, size)`` byte matrix viewed through a numpy structured dtype:
+the constant bytes (header, string lengths and contents) are stamped from a template row, the
+variable fields are written column-wise, and padding stays zero exactly as ``rosbags`` writes it
+(rclpy/Fast CDR leave padding uninitialized; both decode to the same fields). The payloads are
+byte-identical to ``rosbags.typesys`` ``serialize_cdr`` of the ``ROS2_JAZZY`` store (tested).
+
+Supported types: ``sensor_msgs/msg/Imu``, ``nav_msgs/msg/Odometry``,
+``sensor_msgs/msg/NavSatFix``, ``rosgraph_msgs/msg/Clock``, ``geometry_msgs/msg/Vector3Stamped``.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from strapdown_ros.messages import (
+    ClockFields,
+    ImuFields,
+    NavSatFixFields,
+    OdometryFields,
+    Vector3StampedFields,
+    stamps_to_sec_nanosec,
+)
+
+__all__ = [
+    "CLOCK",
+    "IMU",
+    "MSGTYPES",
+    "NAVSATFIX",
+    "ODOMETRY",
+    "VECTOR3_STAMPED",
+    "CdrError",
+    "deserialize",
+    "msgtype_of",
+    "serialize",
+    "serialize_rows",
+    "split_rows",
+]
+
+IMU = "sensor_msgs/msg/Imu"
+ODOMETRY = "nav_msgs/msg/Odometry"
+NAVSATFIX = "sensor_msgs/msg/NavSatFix"
+CLOCK = "rosgraph_msgs/msg/Clock"
+VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
+
+#: CDR_LE representation identifier + zero options.
+ENCAPSULATION = b"\x00\x01\x00\x00"
+_HEADER = len(ENCAPSULATION)
+_NS = 1_000_000_000
+
+
+class CdrError(ValueError):
+    """A payload does not match the layout the bulk codec expects."""
+
+
+# --------------------------------------------------------------------------------------------
+# Layouts
+# --------------------------------------------------------------------------------------------
+
+#: One item of a message layout: (name, kind, count) with kind a numpy type code ('<f8', ...)
+#: or "str" (a string; its value is given separately, in order of appearance).
+Item = tuple[str, str, int]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Byte layout of one message type with known strings (hence a fixed size)."""
+
+    size: int  #: payload size in bytes, encapsulation header included
+    dtype: np.dtype  #: structured dtype of the variable fields (explicit offsets)
+    template: NDArray[np.uint8]  #: (size,) constant bytes: header, strings; zero elsewhere
+    const_mask: NDArray[np.bool_]  #: (size,) bytes that must equal the template (not padding)
+    strings: tuple[str, ...]
+
+
+def _align(pos: int, n: int) -> int:
+    return (pos + n - 1) // n * n
+
+
+def build_layout(items: Sequence[Item], strings: Sequence[str]) -> Layout:
+    """Layout of ``items`` with string values ``strings`` (positions relative to the CDR origin)."""
+    names: list[str] = []
+    formats: list[object] = []
+    offsets: list[int] = []
+    template = bytearray(ENCAPSULATION)
+    mask = bytearray(b"\x01" * _HEADER)
+    pos = 0
+    it = iter(strings)
+    for name, kind, count in items:
+        if kind == "str":
+            text = next(it)
+            data = text.encode("utf-8")
+            if b"\x00" in data:
+                raise CdrError(f"{name}: a ROS string cannot contain NUL")
+            data += b"\x00"
+            new = _align(pos, 4)
+            chunk = b"\x00" * (new - pos) + struct.pack("<I", len(data)) + data
+            template += chunk
+            mask += b"\x00" * (new - pos) + b"\x01" * (4 + len(data))
+            pos = new + 4 + len(data)
+        else:
+            dt = np.dtype(kind)
+            new = _align(pos, dt.itemsize)
+            names.append(name)
+            formats.append(dt if count == 1 else (dt, (count,)))
+            offsets.append(_HEADER + new)
+            width = new - pos + dt.itemsize * count
+            template += b"\x00" * width
+            mask += b"\x00" * width
+            pos = new + dt.itemsize * count
+    size = _HEADER + pos
+    dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": size})
+    return Layout(
+        size=size,
+        dtype=dtype,
+        template=np.frombuffer(bytes(template), dtype=np.uint8),
+        const_mask=np.frombuffer(bytes(mask), dtype=np.uint8).astype(bool),
+        strings=tuple(strings),
+    )
+
+
+def _read_strings(payload: bytes | memoryview, items: Sequence[Item]) -> list[str]:
+    """String values of one payload, walking ``items`` (strings only need their offsets)."""
+    buf = memoryview(payload)
+    if len(buf) < _HEADER:
+        raise CdrError(f"payload of {len(buf)} bytes is shorter than the CDR header")
+    if bytes(buf[:2]) != ENCAPSULATION[:2]:
+        raise CdrError(
+            f"unsupported CDR encapsulation {bytes(buf[:2]).hex()} (expected 0001, CDR_LE)"
+        )
+    pos = 0
+    out = []
+    for name, kind, count in items:
+        if kind == "str":
+            pos = _align(pos, 4)
+            if _HEADER + pos + 4 > len(buf):
+                raise CdrError(f"{name}: payload truncated")
+            (n,) = struct.unpack_from("<I", buf, _HEADER + pos)
+            start = _HEADER + pos + 4
+            if n == 0 or start + n > len(buf) or buf[start + n - 1] != 0:
+                raise CdrError(f"{name}: bad string length {n}")
+            out.append(bytes(buf[start : start + n - 1]).decode("utf-8"))
+            pos += 4 + n
+        else:
+            size = np.dtype(kind).itemsize
+            pos = _align(pos, size) + size * count
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Per-type codecs
+# --------------------------------------------------------------------------------------------
+
+_STAMP: list[Item] = [("sec", "<i4", 1), ("nanosec", "<u4", 1)]
+
+
+@dataclass(frozen=True)
+class Codec:
+    """How one message type maps between its field container and its layout."""
+
+    msgtype: str
+    fields_type: type
+    items: tuple[Item, ...]
+    strings: Callable[[object], tuple[str, ...]]
+    pack: Callable[[np.ndarray, object], None]
+    unpack: Callable[[np.ndarray, NDArray[np.int64], tuple[str, ...]], object]
+
+
+def _stamps_from(arr: np.ndarray) -> NDArray[np.int64]:
+    return arr["sec"].astype(np.int64) * _NS + arr["nanosec"].astype(np.int64)
+
+
+def _put_stamps(arr: np.ndarray, stamps_ns: NDArray[np.int64]) -> None:
+    sec, nsec = stamps_to_sec_nanosec(stamps_ns)
+    arr["sec"] = sec
+    arr["nanosec"] = nsec
+
+
+def _pack_imu(arr: np.ndarray, f: ImuFields) -> None:
+    d = arr["d"]
+    d[:, 0:4] = f.orientation
+    d[:, 4:13] = f.orientation_covariance
+    d[:, 13:16] = f.angular_velocity
+    d[:, 16:25] = f.angular_velocity_covariance
+    d[:, 25:28] = f.linear_acceleration
+    d[:, 28:37] = f.linear_acceleration_covariance
+
+
+def _unpack_imu(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> ImuFields:
+    d = np.ascontiguousarray(arr["d"])
+    return ImuFields(
+        t, s[0], d[:, 0:4], d[:, 4:13], d[:, 13:16], d[:, 16:25], d[:, 25:28], d[:, 28:37]
+    )
+
+
+def _pack_odom(arr: np.ndarray, f: OdometryFields) -> None:
+    d = arr["d"]
+    d[:, 0:3] = f.position
+    d[:, 3:7] = f.orientation
+    d[:, 7:43] = f.pose_covariance
+    d[:, 43:46] = f.twist_linear
+    d[:, 46:49] = f.twist_angular
+    d[:, 49:85] = f.twist_covariance
+
+
+def _unpack_odom(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> OdometryFields:
+    d = np.ascontiguousarray(arr["d"])
+    return OdometryFields(
+        t, s[0], s[1], d[:, 0:3], d[:, 3:7], d[:, 7:43], d[:, 43:46], d[:, 46:49], d[:, 49:85]
+    )
+
+
+def _pack_fix(arr: np.ndarray, f: NavSatFixFields) -> None:
+    arr["status"] = f.status
+    arr["service"] = f.service
+    d = arr["d"]
+    d[:, 0] = f.latitude
+    d[:, 1] = f.longitude
+    d[:, 2] = f.altitude
+    d[:, 3:12] = f.position_covariance
+    arr["covariance_type"] = f.position_covariance_type
+
+
+def _unpack_fix(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> NavSatFixFields:
+    d = np.ascontiguousarray(arr["d"])
+    return NavSatFixFields(
+        t,
+        s[0],
+        arr["status"].astype(np.int8),
+        arr["service"].astype(np.uint16),
+        d[:, 0].copy(),
+        d[:, 1].copy(),
+        d[:, 2].copy(),
+        d[:, 3:12],
+        arr["covariance_type"].astype(np.uint8),
+    )
+
+
+def _pack_vec(arr: np.ndarray, f: Vector3StampedFields) -> None:
+    arr["d"] = f.vector
+
+
+def _unpack_vec(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> Vector3StampedFields:
+    return Vector3StampedFields(t, s[0], np.ascontiguousarray(arr["d"]))
+
+
+MSGTYPES: dict[str, Codec] = {
+    IMU: Codec(
+        IMU,
+        ImuFields,
+        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 37)),
+        lambda f: (f.frame_id,),
+        _pack_imu,
+        _unpack_imu,  # type: ignore[attr-defined]
+    ),
+    ODOMETRY: Codec(
+        ODOMETRY,
+        OdometryFields,
+        (*_STAMP, ("frame_id", "str", 1), ("child_frame_id", "str", 1), ("d", "<f8", 85)),
+        lambda f: (f.frame_id, f.child_frame_id),
+        _pack_odom,
+        _unpack_odom,  # type: ignore
+    ),
+    NAVSATFIX: Codec(
+        NAVSATFIX,
+        NavSatFixFields,
+        (
+            *_STAMP,
+            ("frame_id", "str", 1),
+            ("status", "<i1", 1),
+            ("service", "<u2", 1),
+            ("d", "<f8", 12),
+            ("covariance_type", "<u1", 1),
+        ),
+        lambda f: (f.frame_id,),
+        _pack_fix,
+        _unpack_fix,  # type: ignore[attr-defined]
+    ),
+    CLOCK: Codec(
+        CLOCK,
+        ClockFields,
+        tuple(_STAMP),
+        lambda f: (),
+        lambda arr, f: None,
+        lambda arr, t, s: ClockFields(t),
+    ),
+    VECTOR3_STAMPED: Codec(
+        VECTOR3_STAMPED,
+        Vector3StampedFields,
+        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 3)),
+        lambda f: (f.frame_id,),
+        _pack_vec,
+        _unpack_vec,  # type: ignore[attr-defined]
+    ),
+}
+
+_BY_FIELDS = {c.fields_type: c for c in MSGTYPES.values()}
+
+
+def msgtype_of(fields: object) -> str:
+    """ROS message type name (``pkg/msg/Name``) of a field container."""
+    try:
+        return _BY_FIELDS[type(fields)].msgtype
+    except KeyError:
+        raise TypeError(f"no CDR codec for {type(fields).__name__}") from None
+
+
+def layout_of(msgtype: str, strings: Sequence[str]) -> Layout:
+    """Layout of ``msgtype`` with the given string values (frame ids in field order)."""
+    return build_layout(_codec(msgtype).items, strings)
+
+
+def _codec(msgtype: str) -> Codec:
+    try:
+        return MSGTYPES[msgtype]
+    except KeyError:
+        raise CdrError(
+            f"no bulk CDR codec for {msgtype!r} (supported: {', '.join(MSGTYPES)})"
+        ) from None
+
+
+# --------------------------------------------------------------------------------------------
+# Bulk serialize / deserialize
+# --------------------------------------------------------------------------------------------
+
+
+def serialize_rows(fields: object) -> NDArray[np.uint8]:
+    """Payloads of all messages of a field container as one ``(N, size)`` uint8 matrix."""
+    codec = _BY_FIELDS.get(type(fields))
+    if codec is None:
+        raise TypeError(f"no CDR codec for {type(fields).__name__}")
+    fields.check()  # type: ignore[attr-defined]
+    layout = build_layout(codec.items, codec.strings(fields))
+    n = len(fields)  # type: ignore[arg-type]
+    raw = np.empty((n, layout.size), dtype=np.uint8)
+    raw[:] = layout.template
+    arr = raw.view(layout.dtype)[:, 0]
+    _put_stamps(arr, fields.stamps_ns)  # type: ignore[attr-defined]
+    codec.pack(arr, fields)
+    return raw
+
+
+def split_rows(raw: NDArray[np.uint8]) -> list[bytes]:
+    """One ``bytes`` object per row of a payload matrix."""
+    n, size = raw.shape
+    buf = raw.tobytes()
+    return [buf[i : i + size] for i in range(0, n * size, size)]
+
+
+def serialize(fields: object) -> list[bytes]:
+    """CDR payloads (``bytes``, encapsulation header included) of N messages of a field container.
+
+    Byte-identical to ``rosbags`` ``Typestore.serialize_cdr`` (ROS2_JAZZY) of each message.
+    """
+    return split_rows(serialize_rows(fields))
+
+
+def deserialize(msgtype: str, payloads: Sequence[bytes | memoryview]) -> object:
+    """Field container of N CDR payloads of ``msgtype`` (inverse of :func:`serialize`).
+
+    All payloads must carry the same strings (frame ids); up to 3 trailing padding bytes per
+    payload are tolerated (some middlewares pad to 4). Padding content is ignored. Raises
+    :class:`CdrError` when a payload does not fit the layout.
+    """
+    codec = _codec(msgtype)
+    n = len(payloads)
+    if n == 0:
+        layout = build_layout(codec.items, [""] * sum(k == "str" for _, k, _ in codec.items))
+        arr = np.zeros(0, dtype=layout.dtype)
+        return codec.unpack(arr, np.zeros(0, np.int64), layout.strings)
+    strings = _read_strings(payloads[0], codec.items)
+    layout = build_layout(codec.items, strings)
+    size = layout.size
+    lengths = np.fromiter(map(len, payloads), dtype=np.int64, count=n)
+    if np.all(lengths == size):
+        buf = b"".join(payloads)
+    elif np.all((lengths >= size) & (lengths < size + 4)):
+        buf = b"".join(bytes(memoryview(p)[:size]) for p in payloads)
+    else:
+        bad = int(np.flatnonzero((lengths < size) | (lengths >= size + 4))[0])
+        raise CdrError(
+            f"{msgtype}: message {bad} has {lengths[bad]} bytes, expected {size} (all messages of "
+            f"a topic must carry the frame ids {strings!r} of the first one)"
+        )
+    raw = np.frombuffer(buf, dtype=np.uint8).reshape(n, size)
+    const = layout.const_mask.copy()
+    const[2:4] = False  # encapsulation options are not checked
+    mismatch = np.any(raw[:, const] != layout.template[const], axis=1)
+    if mismatch.any():
+        rows = np.flatnonzero(mismatch)
+        raise CdrError(
+            f"{msgtype}: message {int(rows[0])} differs from message 0 in its encapsulation or "
+            f"strings (frame ids {strings!r}); mixed frame ids are not supported"
+        )
+    arr = raw.view(layout.dtype)[:, 0]
+    return codec.unpack(arr, _stamps_from(arr), tuple(strings))

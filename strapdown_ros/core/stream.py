@@ -1,0 +1,82 @@
+"""A generated stream: increments and truth on the cycle grid of SPEC §2.
+
+A stream has cycles m = 0..M at ``t_m = t0 + m T`` (T an integer number of nanoseconds).
+Increments exist for m = 1..M and cover ``(t_{m-1}, t_m]``; truth exists for m = 0..M. All
+quantities are in the core's frames: body FRD, inertial E0 (SPEC §1). Conversion to ROS messages
+(FLU, ENU, ECEF) happens in :mod:`strapdown_ros.messages`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Stream:
+    """Increments and E0 truth of one stream (reference, variation, ...).
+
+    Attributes
+    ----------
+    t0_ns : int
+        Stamp of cycle 0 (ns since the Unix epoch; ``start_time_s`` of the scenario).
+    period_ns : int
+        Cycle period T (ns), > 0.
+    dalpha : array (M, 3)
+        Δα_m, integrated body angular rate over cycle m = 1..M (rad, FRD).
+    dv : array (M, 3)
+        Δv_m, integrated specific force over cycle m = 1..M (m/s, FRD).
+    c_b_e0 : array (M+1, 3, 3)
+        ``C_B^E0`` at t_m, body FRD to E0.
+    v_e0 : array (M+1, 3)
+        Inertial velocity ``dR^E0/dt`` at t_m (m/s, E0 axes).
+    r_e0 : array (M+1, 3)
+        Position ``R^E0`` at t_m (m).
+    gravity_model : str
+        Gravitation model of the stream (SPEC §1, e.g. ``"j2"``); the exactness rule uses it.
+    """
+
+    t0_ns: int
+    period_ns: int
+    dalpha: Array
+    dv: Array
+    c_b_e0: Array
+    v_e0: Array
+    r_e0: Array
+    gravity_model: str = "j2"
+
+    def __post_init__(self) -> None:
+        """Check shapes so that a malformed stream fails where it is made."""
+        m = self.dalpha.shape[0]
+        if self.period_ns <= 0:
+            raise ValueError(f"period_ns must be > 0, got {self.period_ns}")
+        if self.dalpha.shape != (m, 3) or self.dv.shape != (m, 3):
+            raise ValueError("dalpha and dv must both have shape (M, 3)")
+        if self.c_b_e0.shape != (m + 1, 3, 3):
+            raise ValueError(f"c_b_e0 must have shape ({m + 1}, 3, 3), got {self.c_b_e0.shape}")
+        if self.v_e0.shape != (m + 1, 3) or self.r_e0.shape != (m + 1, 3):
+            raise ValueError(f"v_e0 and r_e0 must have shape ({m + 1}, 3)")
+
+    @property
+    def cycles(self) -> int:
+        """Number M of increment cycles (truth has M + 1 samples)."""
+        return int(self.dalpha.shape[0])
+
+    @property
+    def period(self) -> float:
+        """T (s)."""
+        return self.period_ns * 1e-9
+
+    @property
+    def t(self) -> Array:
+        """Times t_m - t0 (s) of the truth samples, m = 0..M (exact multiples of T in ns)."""
+        return np.arange(self.cycles + 1, dtype=np.int64) * self.period_ns * 1e-9
+
+    @property
+    def stamps_ns(self) -> NDArray[np.int64]:
+        """Stamps t_m (ns since the epoch), m = 0..M."""
+        return self.t0_ns + np.arange(self.cycles + 1, dtype=np.int64) * self.period_ns

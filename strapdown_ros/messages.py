@@ -1,0 +1,677 @@
+"""The ROS/message boundary: streams (FRD, NED, E0) to message fields (FLU, ENU, ECEF) and back.
+
+Everything here is pure numpy (no rclpy, no rosbags). A message *type* is represented by a field
+container holding one array per field for N messages (a struct of arrays); the bulk CDR codec in
+:mod:`strapdown_ros.bag.cdr` turns those into payloads and back. The frame conversions of SPEC §1
+happen here and only here, exactly (sign flips and 90° rotations):
+
+* body: ``v^FLU = diag(1, -1, -1) v^FRD`` (:func:`~strapdown_ros.core.rotations.frd_to_flu`);
+* local level: ``C_FLU^ENU = C_NED_TO_ENU C_FRD^NED C_FRD_TO_FLU``;
+* inertial E0 to ECEF at ``t = t_m - t0`` (:func:`~strapdown_ros.core.earth.e0_state_to_ecef`).
+
+Message semantics (SPEC §2, §4; see ``docs/messages.md``):
+
+``sensor_msgs/Imu`` (m = 1..M)
+    ``header.stamp = t_m``; ``angular_velocity = FLU(Δα_m) / T``;
+    ``linear_acceleration = FLU(Δv_m) / T``; ``orientation`` = attitude of body FLU relative to
+    ENU at ``t_m`` (``C_FLU^ENU``), or identity with ``orientation_covariance[0] = -1`` when not
+    provided.
+``nav_msgs/Odometry`` (m = 0..M)
+    ``header.frame_id = earth``, ``child_frame_id`` = body frame; ``pose.position = r^E``;
+    ``pose.orientation`` = ``C_FLU^E``; ``twist.linear = C_E^FLU v^E`` (velocity relative to the
+    Earth, body axes); ``twist.angular = FLU(ω_eb^B)`` with
+    ``ω_eb^B = Δα_m / T - C_E^B ω_ie^E``: the inertial rate is the mean rate of the cycle ending at
+    ``t_m`` (cycle 1 for m = 0), the Earth rate is removed with the attitude at ``t_m``.
+``sensor_msgs/NavSatFix`` (m = 0..M)
+    geodetic latitude/longitude (deg) and ellipsoidal altitude (m) of ``r^E(t_m)``;
+    ``STATUS_FIX`` / ``SERVICE_GPS``; ideal streams: zero covariance, ``COVARIANCE_TYPE_UNKNOWN``.
+
+Quaternions in the field containers are in ROS order ``(x, y, z, w)``; the core uses ``[w, x, y,
+z]``. Covariances follow REP-145: zeros mean "unknown" (ideal streams), element 0 = -1 means "not
+provided" (:data:`COVARIANCE_NOT_PROVIDED`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from strapdown_ros.core.earth import (
+    body_rates_relative_to_earth,
+    dcm_ned_to_ecef,
+    e0_state_to_ecef,
+    ecef_state_to_e0,
+    ecef_to_geodetic,
+)
+from strapdown_ros.core.rotations import (
+    C_FRD_TO_FLU,
+    dcm_from_quat,
+    dcm_to_flu_enu,
+    flu_to_frd,
+    frd_to_flu,
+    quat_from_dcm,
+)
+from strapdown_ros.core.stream import Stream
+
+__all__ = [
+    "COVARIANCE_NOT_PROVIDED",
+    "COVARIANCE_TYPE_APPROXIMATED",
+    "COVARIANCE_TYPE_DIAGONAL_KNOWN",
+    "COVARIANCE_TYPE_KNOWN",
+    "COVARIANCE_TYPE_UNKNOWN",
+    "DEFAULT_BODY_FRAME",
+    "EARTH_FRAME",
+    "SERVICE_GPS",
+    "STATUS_FIX",
+    "ClockFields",
+    "EarthState",
+    "ImuFields",
+    "ImuIncrements",
+    "NavSatFixFields",
+    "OdometryFields",
+    "Vector3StampedFields",
+    "clock_fields",
+    "imu_fields",
+    "imu_fields_from_increments",
+    "imu_increments",
+    "navsatfix_fields",
+    "navsatfix_fields_from_geodetic",
+    "navsatfix_geodetic",
+    "odometry_fields",
+    "odometry_fields_from_ecef",
+    "odometry_state",
+    "quat_ros_from_dcm",
+    "dcm_from_quat_ros",
+    "stamps_to_sec_nanosec",
+    "stream_from_messages",
+    "vector3_stamped_fields",
+]
+
+#: ROS frame id of ECEF (REP-105), ``header.frame_id`` of every Odometry.
+EARTH_FRAME = "earth"
+#: Default body frame id of the reference IMU (SPEC §4).
+DEFAULT_BODY_FRAME = "reference_imu"
+
+#: REP-145 "not provided": covariance element 0 set to -1 (the rest zero).
+COVARIANCE_NOT_PROVIDED = "not_provided"
+
+# sensor_msgs/NavSatStatus and NavSatFix constants (values of the message definitions).
+STATUS_FIX = 0
+SERVICE_GPS = 1
+COVARIANCE_TYPE_UNKNOWN = 0
+COVARIANCE_TYPE_APPROXIMATED = 1
+COVARIANCE_TYPE_DIAGONAL_KNOWN = 2
+COVARIANCE_TYPE_KNOWN = 3
+
+_NS = 1_000_000_000
+_INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+
+# --------------------------------------------------------------------------------------------
+# Field containers (struct of arrays, N messages each)
+# --------------------------------------------------------------------------------------------
+
+
+class _Fields:
+    """Shared helpers of the field containers."""
+
+    def __len__(self) -> int:
+        return int(np.shape(self.stamps_ns)[0])  # type: ignore[attr-defined]
+
+    def equals(self, other: object) -> bool:
+        """Exact equality of every field (arrays compared element-wise, bit for bit)."""
+        if type(other) is not type(self):
+            return False
+        for f in fields(self):  # type: ignore[arg-type]
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, str) or isinstance(b, str):
+                if a != b:
+                    return False
+            elif not np.array_equal(np.asarray(a), np.asarray(b)):
+                return False
+        return True
+
+    def check(self) -> None:
+        """Validate shapes against ``len(self)``; raises ValueError naming the field."""
+        n = len(self)
+        for f in fields(self):  # type: ignore[arg-type]
+            if f.name == "stamps_ns" or isinstance(getattr(self, f.name), str):
+                continue
+            a = np.asarray(getattr(self, f.name))
+            if a.shape[:1] != (n,):
+                raise ValueError(
+                    f"{type(self).__name__}.{f.name}: expected {n} rows, got shape {a.shape}"
+                )
+
+
+@dataclass(frozen=True, eq=False)
+class ImuFields(_Fields):
+    """``sensor_msgs/msg/Imu`` fields of N messages with one ``frame_id``.
+
+    Arrays: ``stamps_ns`` (N,) int64 ns since the epoch; ``orientation`` (N, 4) ``x, y, z, w``;
+    ``angular_velocity``, ``linear_acceleration`` (N, 3) rad/s, m/s² (FLU); covariances (N, 9)
+    row-major. Arrays may be read-only broadcast views (constant covariances).
+    """
+
+    stamps_ns: I64
+    frame_id: str
+    orientation: F64
+    orientation_covariance: F64
+    angular_velocity: F64
+    angular_velocity_covariance: F64
+    linear_acceleration: F64
+    linear_acceleration_covariance: F64
+
+
+@dataclass(frozen=True, eq=False)
+class OdometryFields(_Fields):
+    """``nav_msgs/msg/Odometry`` fields of N messages with constant frame ids.
+
+    ``position`` (N, 3) m ECEF; ``orientation`` (N, 4) ``x, y, z, w`` of body FLU relative to
+    ECEF; ``pose_covariance`` (N, 36); ``twist_linear`` (N, 3) m/s and ``twist_angular`` (N, 3)
+    rad/s, both relative to the Earth in body FLU axes; ``twist_covariance`` (N, 36).
+    """
+
+    stamps_ns: I64
+    frame_id: str
+    child_frame_id: str
+    position: F64
+    orientation: F64
+    pose_covariance: F64
+    twist_linear: F64
+    twist_angular: F64
+    twist_covariance: F64
+
+
+@dataclass(frozen=True, eq=False)
+class NavSatFixFields(_Fields):
+    """``sensor_msgs/msg/NavSatFix`` fields of N messages with one ``frame_id``.
+
+    ``status`` (N,) int8, ``service`` (N,) uint16 (NavSatStatus); ``latitude``, ``longitude``
+    (N,) deg; ``altitude`` (N,) m above the WGS-84 ellipsoid; ``position_covariance`` (N, 9) m²
+    (ENU); ``position_covariance_type`` (N,) uint8.
+    """
+
+    stamps_ns: I64
+    frame_id: str
+    status: NDArray[np.int8]
+    service: NDArray[np.uint16]
+    latitude: F64
+    longitude: F64
+    altitude: F64
+    position_covariance: F64
+    position_covariance_type: NDArray[np.uint8]
+
+
+@dataclass(frozen=True, eq=False)
+class ClockFields(_Fields):
+    """``rosgraph_msgs/msg/Clock`` of N messages: ``clock = stamps_ns``."""
+
+    stamps_ns: I64
+
+
+@dataclass(frozen=True, eq=False)
+class Vector3StampedFields(_Fields):
+    """``geometry_msgs/msg/Vector3Stamped`` of N messages: ``vector`` (N, 3)."""
+
+    stamps_ns: I64
+    frame_id: str
+    vector: F64
+
+
+# --------------------------------------------------------------------------------------------
+# Small helpers
+# --------------------------------------------------------------------------------------------
+
+
+def stamps_to_sec_nanosec(stamps_ns: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.uint32]]:
+    """``builtin_interfaces/Time`` of ns stamps: ``sec = floor(t / 1e9)``, ``nanosec`` in [0, 1e9).
+
+    Raises ValueError if a stamp does not fit ``int32`` seconds.
+    """
+    t = np.asarray(stamps_ns, dtype=np.int64)
+    sec = np.floor_divide(t, _NS)
+    if sec.size and (sec.min() < _INT32_MIN or sec.max() > _INT32_MAX):
+        raise ValueError("time stamp outside the int32 seconds range of builtin_interfaces/Time")
+    return sec.astype(np.int32), (t - sec * _NS).astype(np.uint32)
+
+
+def quat_ros_from_dcm(c: ArrayLike) -> F64:
+    """ROS quaternion ``(x, y, z, w)``, ``w >= 0``, of a DCM ``C_A^B`` (frame A relative to B)."""
+    q = quat_from_dcm(c)
+    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+
+
+def dcm_from_quat_ros(q_xyzw: ArrayLike) -> F64:
+    """DCM of a ROS quaternion ``(x, y, z, w)`` (normalized first)."""
+    q = np.asarray(q_xyzw, dtype=np.float64)
+    return dcm_from_quat(np.concatenate([q[..., 3:], q[..., :3]], axis=-1))
+
+
+def _stamps(stamps_ns: ArrayLike) -> I64:
+    t = np.asarray(stamps_ns)
+    if t.ndim != 1 or not np.issubdtype(t.dtype, np.integer):
+        raise ValueError("stamps_ns must be a 1-D integer array (ns since the epoch)")
+    return t.astype(np.int64, copy=False)
+
+
+def _rows(a: ArrayLike, n: int, width: int, name: str) -> F64:
+    a = np.asarray(a, dtype=np.float64)
+    if a.shape != (n, width):
+        raise ValueError(f"{name}: expected shape ({n}, {width}), got {a.shape}")
+    return a
+
+
+def _covariance(spec: object, n: int, k: int, name: str) -> F64:
+    """(n, k*k) covariance rows from a REP-145 spec.
+
+    ``None`` → zeros (unknown); :data:`COVARIANCE_NOT_PROVIDED` → ``[-1, 0, ...]``; an array of
+    shape (k*k,), (k, k), (n, k*k) or (n, k, k) → broadcast rows. Constant specs give read-only
+    broadcast views.
+    """
+    size = k * k
+    if spec is None:
+        return np.broadcast_to(np.zeros(size), (n, size))
+    if isinstance(spec, str):
+        if spec != COVARIANCE_NOT_PROVIDED:
+            raise ValueError(f"{name}: unknown covariance spec {spec!r}")
+        row = np.zeros(size)
+        row[0] = -1.0
+        return np.broadcast_to(row, (n, size))
+    a = np.asarray(spec, dtype=np.float64)
+    if a.shape in ((size,), (k, k)):
+        return np.broadcast_to(a.reshape(size), (n, size))
+    if a.shape in ((n, size), (n, k, k)):
+        return a.reshape(n, size)
+    raise ValueError(
+        f"{name}: expected shape ({size},), ({k}, {k}), ({n}, {size}) or ({n}, {k}, "
+        f"{k}), got {a.shape}"
+    )
+
+
+def _column(value: ArrayLike, n: int, dtype: type, name: str) -> NDArray:
+    a = np.asarray(value)
+    if a.ndim == 0:
+        return np.broadcast_to(a.astype(dtype), (n,))
+    if a.shape != (n,):
+        raise ValueError(f"{name}: expected a scalar or shape ({n},), got {a.shape}")
+    return a.astype(dtype)
+
+
+# --------------------------------------------------------------------------------------------
+# Stream -> message fields
+# --------------------------------------------------------------------------------------------
+
+
+def imu_fields_from_increments(
+    stamps_ns: ArrayLike,
+    dalpha: ArrayLike,
+    dv: ArrayLike,
+    period_ns: int,
+    frame_id: str = DEFAULT_BODY_FRAME,
+    *,
+    c_frd_ned: ArrayLike | None = None,
+    orientation_covariance: object = None,
+    angular_velocity_covariance: object = None,
+    linear_acceleration_covariance: object = None,
+) -> ImuFields:
+    """Imu fields of increments over cycles ending at ``stamps_ns`` (SPEC §2).
+
+    Parameters
+    ----------
+    stamps_ns : (N,) int
+        ``t_m`` (ns since the epoch), the end of each cycle.
+    dalpha, dv : (N, 3)
+        Δα_m (rad) and Δv_m (m/s) over ``(t_m - T, t_m]`` in body FRD.
+    period_ns : int
+        T (ns); ``angular_velocity = FLU(Δα) / T`` and ``linear_acceleration = FLU(Δv) / T``.
+    frame_id : str
+        Body (FLU) frame id.
+    c_frd_ned : (N, 3, 3) or None
+        True attitude ``C_FRD^NED`` at ``t_m``; ``orientation = C_FLU^ENU``. None: orientation not
+        provided (identity quaternion, ``orientation_covariance[0] = -1`` unless given).
+    orientation_covariance, angular_velocity_covariance, linear_acceleration_covariance
+        REP-145 specs: None (zeros: unknown), :data:`COVARIANCE_NOT_PROVIDED`, or arrays
+        (9,), (3, 3), (N, 9), (N, 3, 3) in rad² and (m/s²)², FLU/ENU axes.
+    """
+    t = _stamps(stamps_ns)
+    n = t.shape[0]
+    if int(period_ns) <= 0:
+        raise ValueError(f"period_ns must be > 0, got {period_ns}")
+    T = int(period_ns) * 1e-9
+    da = _rows(dalpha, n, 3, "dalpha")
+    dv = _rows(dv, n, 3, "dv")
+    if c_frd_ned is None:
+        q = np.broadcast_to(np.array([0.0, 0.0, 0.0, 1.0]), (n, 4))
+        if orientation_covariance is None:
+            orientation_covariance = COVARIANCE_NOT_PROVIDED
+    else:
+        c = np.asarray(c_frd_ned, dtype=np.float64)
+        if c.shape != (n, 3, 3):
+            raise ValueError(f"c_frd_ned: expected shape ({n}, 3, 3), got {c.shape}")
+        q = quat_ros_from_dcm(dcm_to_flu_enu(c))
+    return ImuFields(
+        stamps_ns=t,
+        frame_id=frame_id,
+        orientation=q,
+        orientation_covariance=_covariance(orientation_covariance, n, 3, "orientation_covariance"),
+        angular_velocity=frd_to_flu(da) / T,
+        angular_velocity_covariance=_covariance(
+            angular_velocity_covariance, n, 3, "angular_velocity_covariance"
+        ),
+        linear_acceleration=frd_to_flu(dv) / T,
+        linear_acceleration_covariance=_covariance(
+            linear_acceleration_covariance, n, 3, "linear_acceleration_covariance"
+        ),
+    )
+
+
+def _ecef_truth(stream: Stream) -> tuple[F64, F64, F64]:
+    """``r^E, v^E, C_B^E`` (FRD) at t_m, m = 0..M, of a stream (E0 → E at ``t = t_m - t0``)."""
+    r_e, v_e, c_b_e = e0_state_to_ecef(stream.t, stream.r_e0, stream.v_e0, stream.c_b_e0)
+    assert c_b_e is not None
+    return r_e, v_e, c_b_e
+
+
+def _c_frd_ned(r_e: F64, c_b_e: F64) -> F64:
+    lat, lon, _ = ecef_to_geodetic(r_e)
+    return np.swapaxes(dcm_ned_to_ecef(lat, lon), -1, -2) @ c_b_e
+
+
+def imu_fields(
+    stream: Stream,
+    frame_id: str = DEFAULT_BODY_FRAME,
+    *,
+    orientation: bool = True,
+    orientation_covariance: object = None,
+    angular_velocity_covariance: object = None,
+    linear_acceleration_covariance: object = None,
+) -> ImuFields:
+    """Imu fields of a stream, m = 1..M (SPEC §2, §4).
+
+    ``orientation=True`` carries the true attitude (FLU relative to ENU at ``t_m``), as on ideal
+    streams; ``False`` marks it not provided (measured data). Covariance specs as in
+    :func:`imu_fields_from_increments`.
+    """
+    c = None
+    if orientation:
+        r_e, _, c_b_e = _ecef_truth(stream)
+        c = _c_frd_ned(r_e[1:], c_b_e[1:])
+    return imu_fields_from_increments(
+        stream.stamps_ns[1:],
+        stream.dalpha,
+        stream.dv,
+        stream.period_ns,
+        frame_id,
+        c_frd_ned=c,
+        orientation_covariance=orientation_covariance,
+        angular_velocity_covariance=angular_velocity_covariance,
+        linear_acceleration_covariance=linear_acceleration_covariance,
+    )
+
+
+def odometry_fields_from_ecef(
+    stamps_ns: ArrayLike,
+    r_e: ArrayLike,
+    v_e: ArrayLike,
+    c_b_e: ArrayLike,
+    omega_eb_b: ArrayLike,
+    child_frame_id: str = DEFAULT_BODY_FRAME,
+    frame_id: str = EARTH_FRAME,
+    *,
+    pose_covariance: object = None,
+    twist_covariance: object = None,
+) -> OdometryFields:
+    """Odometry fields of an Earth-referenced state (core frames in, ROS frames out).
+
+    Parameters
+    ----------
+    stamps_ns : (N,) int
+    r_e : (N, 3)
+        ECEF position, m.
+    v_e : (N, 3)
+        Velocity relative to the Earth in ECEF axes, m/s.
+    c_b_e : (N, 3, 3)
+        ``C_FRD^E`` (body FRD to ECEF).
+    omega_eb_b : (N, 3)
+        Angular rate of the body relative to the Earth, body FRD axes, rad/s.
+    pose_covariance, twist_covariance
+        REP-145 specs (None, :data:`COVARIANCE_NOT_PROVIDED`, (36,), (6, 6), (N, 36), (N, 6, 6)).
+    """
+    t = _stamps(stamps_ns)
+    n = t.shape[0]
+    r = _rows(r_e, n, 3, "r_e")
+    v = _rows(v_e, n, 3, "v_e")
+    w = _rows(omega_eb_b, n, 3, "omega_eb_b")
+    c = np.asarray(c_b_e, dtype=np.float64)
+    if c.shape != (n, 3, 3):
+        raise ValueError(f"c_b_e: expected shape ({n}, 3, 3), got {c.shape}")
+    v_b = (np.swapaxes(c, -1, -2) @ v[..., None])[..., 0]
+    return OdometryFields(
+        stamps_ns=t,
+        frame_id=frame_id,
+        child_frame_id=child_frame_id,
+        position=r,
+        orientation=quat_ros_from_dcm(c @ C_FRD_TO_FLU),
+        pose_covariance=_covariance(pose_covariance, n, 6, "pose_covariance"),
+        twist_linear=frd_to_flu(v_b),
+        twist_angular=frd_to_flu(w),
+        twist_covariance=_covariance(twist_covariance, n, 6, "twist_covariance"),
+    )
+
+
+def odometry_fields(
+    stream: Stream,
+    child_frame_id: str = DEFAULT_BODY_FRAME,
+    frame_id: str = EARTH_FRAME,
+    *,
+    pose_covariance: object = None,
+    twist_covariance: object = None,
+) -> OdometryFields:
+    """Odometry (truth) fields of a stream, m = 0..M (SPEC §4).
+
+    ``twist.angular`` is ``FLU(Δα_m / T - C_E^B ω_ie^E)`` with the cycle ending at ``t_m``
+    (cycle 1 for m = 0; for a stream without cycles the body is taken at rest on the Earth).
+    """
+    r_e, v_e, c_b_e = _ecef_truth(stream)
+    n = stream.cycles + 1
+    if stream.cycles:
+        w_ib = np.concatenate([stream.dalpha[:1], stream.dalpha]) / stream.period
+    else:  # no cycle: take the body at rest on the Earth (ω_ib^B = C_E^B ω_ie^E)
+        w_ib = -body_rates_relative_to_earth(np.zeros((n, 3)), c_b_e)
+    w_eb = body_rates_relative_to_earth(w_ib, c_b_e)
+    return odometry_fields_from_ecef(
+        stream.stamps_ns,
+        r_e,
+        v_e,
+        c_b_e,
+        w_eb,
+        child_frame_id,
+        frame_id,
+        pose_covariance=pose_covariance,
+        twist_covariance=twist_covariance,
+    )
+
+
+def navsatfix_fields_from_geodetic(
+    stamps_ns: ArrayLike,
+    lat: ArrayLike,
+    lon: ArrayLike,
+    alt: ArrayLike,
+    frame_id: str = DEFAULT_BODY_FRAME,
+    *,
+    position_covariance: ArrayLike | None = None,
+    position_covariance_type: int | None = None,
+    status: ArrayLike = STATUS_FIX,
+    service: ArrayLike = SERVICE_GPS,
+) -> NavSatFixFields:
+    """NavSatFix fields of geodetic positions (``lat``, ``lon`` in rad, ``alt`` ellipsoidal, m).
+
+    ``position_covariance`` None → zeros and ``COVARIANCE_TYPE_UNKNOWN``; otherwise (9,), (3, 3),
+    (N, 9) or (N, 3, 3) m² in ENU with type ``position_covariance_type`` (default KNOWN).
+    """
+    t = _stamps(stamps_ns)
+    n = t.shape[0]
+    cov = _covariance(position_covariance, n, 3, "position_covariance")
+    ctype = position_covariance_type
+    if ctype is None:
+        ctype = COVARIANCE_TYPE_UNKNOWN if position_covariance is None else COVARIANCE_TYPE_KNOWN
+    return NavSatFixFields(
+        stamps_ns=t,
+        frame_id=frame_id,
+        status=_column(status, n, np.int8, "status"),
+        service=_column(service, n, np.uint16, "service"),
+        latitude=np.degrees(_column(lat, n, np.float64, "lat")),
+        longitude=np.degrees(_column(lon, n, np.float64, "lon")),
+        altitude=_column(alt, n, np.float64, "alt"),
+        position_covariance=cov,
+        position_covariance_type=_column(ctype, n, np.uint8, "position_covariance_type"),
+    )
+
+
+def navsatfix_fields(
+    stream: Stream,
+    frame_id: str = DEFAULT_BODY_FRAME,
+    *,
+    position_covariance: ArrayLike | None = None,
+    position_covariance_type: int | None = None,
+) -> NavSatFixFields:
+    """NavSatFix (truth) fields of a stream, m = 0..M: geodetic position of ``r^E(t_m)``."""
+    r_e, _, _ = _ecef_truth(stream)
+    lat, lon, alt = ecef_to_geodetic(r_e)
+    return navsatfix_fields_from_geodetic(
+        stream.stamps_ns,
+        lat,
+        lon,
+        alt,
+        frame_id,
+        position_covariance=position_covariance,
+        position_covariance_type=position_covariance_type,
+    )
+
+
+def clock_fields(stamps_ns: ArrayLike) -> ClockFields:
+    """``rosgraph_msgs/Clock`` fields (simulated time ``stamps_ns``)."""
+    return ClockFields(stamps_ns=_stamps(stamps_ns))
+
+
+def vector3_stamped_fields(
+    stamps_ns: ArrayLike, vector: ArrayLike, frame_id: str
+) -> Vector3StampedFields:
+    """``geometry_msgs/Vector3Stamped`` fields (e.g. navigator errors, NED; SPEC §4)."""
+    t = _stamps(stamps_ns)
+    return Vector3StampedFields(
+        stamps_ns=t, frame_id=frame_id, vector=_rows(vector, t.shape[0], 3, "vector")
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Message fields -> core arrays (inverses)
+# --------------------------------------------------------------------------------------------
+
+
+class ImuIncrements(NamedTuple):
+    """Increments recovered from Imu messages (core frames)."""
+
+    stamps_ns: I64  #: (N,) cycle end stamps t_m
+    period_ns: int  #: T (ns)
+    dalpha: F64  #: (N, 3) Δα (rad, FRD)
+    dv: F64  #: (N, 3) Δv (m/s, FRD)
+
+
+class EarthState(NamedTuple):
+    """Earth-referenced state recovered from Odometry messages (core frames)."""
+
+    stamps_ns: I64  #: (N,)
+    r_e: F64  #: (N, 3) ECEF position, m
+    v_e: F64  #: (N, 3) velocity relative to the Earth, ECEF axes, m/s
+    c_b_e: F64  #: (N, 3, 3) C_FRD^E
+    omega_eb_b: F64  #: (N, 3) body rate relative to the Earth, FRD, rad/s
+
+
+def _uniform_period(stamps_ns: I64, name: str) -> int:
+    if stamps_ns.shape[0] < 2:
+        raise ValueError(f"{name}: need >= 2 messages to recover T; pass period_ns")
+    d = np.diff(stamps_ns)
+    if not np.all(d == d[0]) or d[0] <= 0:
+        raise ValueError(f"{name}: stamps are not uniformly spaced; pass period_ns")
+    return int(d[0])
+
+
+def imu_increments(imu: ImuFields, period_ns: int | None = None) -> ImuIncrements:
+    """Δα, Δv (FRD) of Imu messages: ``FRD(angular_velocity) T``, ``FRD(linear_acceleration) T``.
+
+    T is ``period_ns`` or the (uniform) spacing of the stamps (SPEC §2). ``x / T * T`` equals
+    ``x`` to 1 ulp (not always bit for bit).
+    """
+    t = _stamps(imu.stamps_ns)
+    p = _uniform_period(t, "imu") if period_ns is None else int(period_ns)
+    T = p * 1e-9
+    return ImuIncrements(
+        t,
+        p,
+        flu_to_frd(np.asarray(imu.angular_velocity, dtype=np.float64)) * T,
+        flu_to_frd(np.asarray(imu.linear_acceleration, dtype=np.float64)) * T,
+    )
+
+
+def odometry_state(odom: OdometryFields) -> EarthState:
+    """Earth-referenced state (FRD body) of Odometry messages; inverse of
+    :func:`odometry_fields_from_ecef` (to rounding of the quaternion)."""
+    c = dcm_from_quat_ros(odom.orientation) @ C_FRD_TO_FLU
+    v_b = flu_to_frd(np.asarray(odom.twist_linear, dtype=np.float64))
+    return EarthState(
+        _stamps(odom.stamps_ns),
+        np.asarray(odom.position, dtype=np.float64),
+        (c @ v_b[..., None])[..., 0],
+        c,
+        flu_to_frd(np.asarray(odom.twist_angular, dtype=np.float64)),
+    )
+
+
+def navsatfix_geodetic(fix: NavSatFixFields) -> tuple[I64, F64, F64, F64]:
+    """``(stamps_ns, lat, lon, alt)`` with lat/lon in rad, alt in m, of NavSatFix messages."""
+    return (
+        _stamps(fix.stamps_ns),
+        np.radians(np.asarray(fix.latitude, dtype=np.float64)),
+        np.radians(np.asarray(fix.longitude, dtype=np.float64)),
+        np.asarray(fix.altitude, dtype=np.float64),
+    )
+
+
+def stream_from_messages(imu: ImuFields, odom: OdometryFields, gravity_model: str = "j2") -> Stream:
+    """Rebuild a :class:`Stream` (E0 truth, FRD increments) from its Imu and Odometry messages.
+
+    The first Odometry message is cycle 0 (``t0``); Imu message m must be stamped like Odometry
+    message m (m = 1..M). Used to check the exactness rule (SPEC §3) on a written bag; the E → E0
+    and quaternion round trips cost ~1e-9 m and ~1e-16 rad, far below the rule's tolerances.
+    """
+    t_odom = _stamps(odom.stamps_ns)
+    t_imu = _stamps(imu.stamps_ns)
+    if t_odom.shape[0] != t_imu.shape[0] + 1 or not np.array_equal(t_odom[1:], t_imu):
+        raise ValueError("Imu stamps must equal the Odometry stamps of cycles 1..M")
+    if t_imu.shape[0]:
+        period = _uniform_period(t_odom, "odometry")
+    else:
+        raise ValueError("need at least one Imu message to rebuild a stream")
+    inc = imu_increments(imu, period)
+    st = odometry_state(odom)
+    t = (t_odom - t_odom[0]) * 1e-9
+    r0, v0, c0 = ecef_state_to_e0(t, st.r_e, st.v_e, st.c_b_e)
+    assert c0 is not None
+    return Stream(
+        t0_ns=int(t_odom[0]),
+        period_ns=period,
+        dalpha=inc.dalpha,
+        dv=inc.dv,
+        c_b_e0=c0,
+        v_e0=v0,
+        r_e0=r0,
+        gravity_model=gravity_model,
+    )

@@ -1,0 +1,242 @@
+"""The reference stream of a scenario: trajectory model → Method 2 regeneration → output rate.
+
+This is the offline path shared by ``strapdown-sim generate`` and ``trajectory_node`` (which
+publishes exactly these messages). ROS-free: numpy and the core only.
+
+Steps (SPEC §2-§3, Savage 2020):
+
+1. Build the trajectory model of ``trajectory.kind`` (validated; errors name the key).
+2. ``increments`` kind: integrate Savage's constant-rate segments directly (exact by
+   construction). Every other kind: sample the continuous truth at the generation instants,
+   convert it to E0 and regenerate it through Method 2 with zero offsets (eqs. (8), (23)-(31)
+   with S = 0, C_Bvar^Bref = I), which makes increments and truth obey eqs. (2)-(4).
+3. ``oversample`` > 1: output increments are sums of ``oversample`` generation increments (what a
+   real IMU reports) and the truth is the generation truth at the output instants.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from strapdown_ros.core.gravity import gravitation
+from strapdown_ros.core.method2 import method2, pair_displacement
+from strapdown_ros.core.stream import Stream
+from strapdown_ros.core.trajectory.base import Trajectory, local_to_e0
+from strapdown_ros.scenario import Scenario, ScenarioError
+
+__all__ = [
+    "build_trajectory",
+    "decimate",
+    "generate_reference",
+    "natural_duration",
+    "smooth_displacement",
+]
+
+
+def _wrap(path: str, exc: Exception) -> ScenarioError:
+    """A kind builder's error as a ScenarioError; keeps the key if the message names one."""
+    message = str(exc).strip("'\"")
+    head, sep, rest = message.partition(": ")
+    if sep and re.fullmatch(r"[A-Za-z_][\w.\[\]]*", head):
+        if head.startswith("trajectory"):
+            return ScenarioError(head, rest)
+        if head.startswith("initial"):
+            return ScenarioError(head, rest)
+        section = path.rsplit(".", 1)[-1]
+        if head.startswith(section):  # e.g. "segments[2].accel_mps2" under trajectory.segments
+            return ScenarioError(f"{path.rsplit('.', 1)[0]}.{head}", rest)
+        return ScenarioError(f"{path}.{head}", rest)
+    return ScenarioError(path, message)
+
+
+def build_trajectory(scenario: Scenario) -> Trajectory | None:
+    """The continuous trajectory model of the scenario (``None`` for kind ``increments``).
+
+    Raises
+    ------
+    ScenarioError
+        When the kind's parameters are invalid or describe an impossible trajectory.
+    """
+    traj = scenario.trajectory
+    kind = traj["kind"]
+    if kind == "samples":
+        from strapdown_ros.core.trajectory.samples import SamplesTrajectory
+
+        try:
+            return SamplesTrajectory.from_config(traj, scenario.base_dir)
+        except (ValueError, TypeError, KeyError, OSError) as exc:
+            raise _wrap("trajectory", exc) from exc
+    assert scenario.initial is not None
+    initial = scenario.initial.as_dict()
+    try:
+        if kind == "segments":
+            from strapdown_ros.core.trajectory.segments import SegmentsTrajectory
+
+            return SegmentsTrajectory.from_config(initial, _list(traj, "segments"))
+        if kind == "coning":
+            from strapdown_ros.core.trajectory.coning import ConingTrajectory
+
+            return ConingTrajectory.from_config(initial, traj.get("coning") or {})
+    except ScenarioError:
+        raise
+    except (ValueError, TypeError, KeyError, OSError) as exc:
+        raise _wrap(f"trajectory.{_section(kind)}", exc) from exc
+    if kind == "increments":
+        _list(traj, "segments")
+        return None
+    raise ScenarioError("trajectory.kind", f"unknown kind {kind!r}")
+
+
+def _section(kind: str) -> str:
+    return {"segments": "segments", "increments": "segments"}.get(kind, kind)
+
+
+def _list(traj: dict[str, Any], key: str) -> list[dict[str, Any]]:
+    value = traj.get(key)
+    if not isinstance(value, list) or not value:
+        raise ScenarioError(f"trajectory.{key}", "must be a non-empty list of segments")
+    for i, item in enumerate(value):
+        if not isinstance(item, dict):
+            raise ScenarioError(f"trajectory.{key}[{i}]", "must be a mapping")
+    return value
+
+
+def natural_duration(scenario: Scenario, trajectory: Trajectory | None) -> float:
+    """Length (s) of the trajectory as described, before ``duration_s`` truncates it."""
+    if trajectory is not None:
+        return float(trajectory.duration)
+    return float(sum(float(s.get("duration_s", 0.0)) for s in scenario.trajectory["segments"]))
+
+
+def _output_cycles(scenario: Scenario, trajectory: Trajectory | None) -> int:
+    natural = natural_duration(scenario, trajectory)
+    duration = scenario.duration_s if scenario.duration_s is not None else natural
+    if duration > natural + 1e-9:
+        raise ScenarioError(
+            "duration_s",
+            f"{duration} s exceeds the trajectory's length of {natural} s",
+        )
+    cycles = int(np.floor(duration * scenario.rate_hz + 1e-9))
+    if cycles < 1:
+        raise ScenarioError("duration_s", f"{duration} s is shorter than one cycle")
+    return cycles
+
+
+#: Largest disagreement (m) between a model's position differences and Simpson's rule on its
+#: velocity for which the Simpson displacement is used (20 % of the SPEC §3 position budget).
+DISPLACEMENT_TOLERANCE_M = 2e-8
+
+
+def smooth_displacement(r_e0: np.ndarray, v_e0: np.ndarray, period: float) -> np.ndarray | None:
+    """Pair displacements for Method 2 without coordinate rounding noise, when consistent.
+
+    Uses :func:`~strapdown_ros.core.method2.pair_displacement` (Simpson's rule on the velocity)
+    when it agrees with the model's own position differences to
+    :data:`DISPLACEMENT_TOLERANCE_M`; otherwise (a model whose velocity is not the derivative
+    of its position) returns ``None`` so Method 2 uses the position differences themselves.
+    """
+    disp = pair_displacement(v_e0, period)
+    pairs = disp.shape[0]
+    diff = r_e0[2 : 2 * pairs + 1 : 2] - r_e0[0 : 2 * pairs - 1 : 2]
+    if pairs and np.max(np.abs(diff - disp)) > DISPLACEMENT_TOLERANCE_M:
+        return None
+    return disp
+
+
+def decimate(stream: Stream, factor: int) -> Stream:
+    """Output-rate stream: sums of ``factor`` generation increments, truth at output instants.
+
+    SPEC §2: output increments are sums of generation increments (what a real IMU reports);
+    the truth is the generation truth sampled at the output instants.
+    """
+    if factor == 1:
+        return stream
+    m = stream.cycles // factor
+    n = m * factor
+    return replace(
+        stream,
+        period_ns=stream.period_ns * factor,
+        dalpha=stream.dalpha[:n].reshape(m, factor, 3).sum(axis=1),
+        dv=stream.dv[:n].reshape(m, factor, 3).sum(axis=1),
+        c_b_e0=stream.c_b_e0[: n + 1 : factor],
+        v_e0=stream.v_e0[: n + 1 : factor],
+        r_e0=stream.r_e0[: n + 1 : factor],
+    )
+
+
+def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None) -> Stream:
+    """The reference stream of ``scenario`` at its output rate (SPEC §2-§3).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Validated scenario.
+    trajectory : Trajectory, optional
+        Pre-built model (from :func:`build_trajectory`); built here if omitted.
+    """
+    if trajectory is None and scenario.trajectory["kind"] != "increments":
+        trajectory = build_trajectory(scenario)
+    out_cycles = _output_cycles(scenario, trajectory)
+    gen_cycles = out_cycles * scenario.oversample
+    gen_period_ns = scenario.generation_period_ns
+    model = scenario.gravity_model
+
+    if trajectory is None:  # kind: increments, exact by construction
+        from strapdown_ros.core.trajectory.increments import generate_increments_stream
+
+        try:
+            assert scenario.initial is not None
+            stream = generate_increments_stream(
+                scenario.initial.as_dict(),
+                scenario.trajectory["segments"],
+                scenario.rate_hz * scenario.oversample,
+                scenario.start_time_ns,
+                gravity_model=model,
+            )
+        except ScenarioError:
+            raise
+        except (ValueError, TypeError, KeyError) as exc:
+            raise _wrap("trajectory.segments", exc) from exc
+        stream = _truncate(stream, gen_cycles)
+    else:
+        t = np.arange(gen_cycles + 1, dtype=np.int64) * gen_period_ns * 1e-9
+        truth = local_to_e0(trajectory.local_truth(t))
+        period = gen_period_ns * 1e-9
+        solution = method2(
+            truth.c_b_e0,
+            truth.r_e0,
+            truth.v_e0,
+            period,
+            lambda r: gravitation(r, model),
+            displacement=smooth_displacement(truth.r_e0, truth.v_e0, period),
+        )
+        stream = Stream(
+            t0_ns=scenario.start_time_ns,
+            period_ns=gen_period_ns,
+            dalpha=solution.dalpha,
+            dv=solution.dv,
+            c_b_e0=solution.c_b_e0,
+            v_e0=solution.v_e0,
+            r_e0=solution.r_e0,
+            gravity_model=model,
+        )
+    return decimate(stream, scenario.oversample)
+
+
+def _truncate(stream: Stream, cycles: int) -> Stream:
+    if stream.cycles < cycles:
+        raise ScenarioError(
+            "duration_s", f"the increments segments cover only {stream.cycles} cycles"
+        )
+    return replace(
+        stream,
+        dalpha=stream.dalpha[:cycles],
+        dv=stream.dv[:cycles],
+        c_b_e0=stream.c_b_e0[: cycles + 1],
+        v_e0=stream.v_e0[: cycles + 1],
+        r_e0=stream.r_e0[: cycles + 1],
+    )

@@ -1,0 +1,206 @@
+"""The ``segments`` trajectory: smooth transitions, maneuver targets, consistency, validation."""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef
+from strapdown_ros.core.rotations import euler_from_dcm, vee
+from strapdown_ros.core.trajectory.segments import SegmentsTrajectory
+
+INITIAL = {
+    "latitude_deg": 45.0,
+    "longitude_deg": 7.0,
+    "altitude_m": 300.0,
+    "velocity_ned_mps": [0.0, 0.0, 0.0],
+    "attitude_rph_deg": [0.0, 0.0, 30.0],
+}
+
+# Every kind of transition: track→track (speed, turn, climb), track→NED, NED→track.
+MIXED = [
+    {"duration_s": 10},
+    {"duration_s": 30, "accel_mps2": 5, "transition_s": 2},
+    {"duration_s": 60, "heading_rate_dps": 3},
+    {"duration_s": 30, "heading_rate_dps": -1.5, "climb_rate_mps": 8, "transition_s": 5},
+    {"duration_s": 40, "accel_ned_mps2": [1, -2, 0.3]},
+    {
+        "duration_s": 30,
+        "pitch_rate_dps": 0.2,
+        "heading_rate_dps": 2,
+        "climb_rate_mps": 0,
+        "transition_s": 4,
+    },
+    {"duration_s": 100, "roll_rate_dps": 1.0},
+]
+
+
+@pytest.fixture(scope="module")
+def mixed():
+    return SegmentsTrajectory.from_config(INITIAL, MIXED)
+
+
+def boundaries(durations):
+    return np.cumsum(durations)[:-1]
+
+
+def accel_jump(traj, tb, d=1e-4):
+    """|a(t_b+) - a(t_b-)| from one-sided differences of the NED velocity (m/s²)."""
+    v = traj.local_truth(np.array([tb - d, tb, tb + d])).v_ned
+    return np.linalg.norm((v[2] - v[1]) / d - (v[1] - v[0]) / d)
+
+
+def rate_jump(traj, tb, d=1e-4):
+    """|ω_nb(t_b+) - ω_nb(t_b-)| from one-sided differences of C_B^N (rad/s)."""
+    c = traj.local_truth(np.array([tb - d, tb, tb + d])).c_b_n
+    left = vee(c[1].T @ (c[1] - c[0])) / d
+    right = vee(c[1].T @ (c[2] - c[1])) / d
+    return np.linalg.norm(right - left)
+
+
+def test_transitions_are_smooth(mixed):
+    """No step in acceleration or angular rate at any boundary (FD noise ~ d · jerk ≤ 1e-4)."""
+    for tb in boundaries([s["duration_s"] for s in MIXED]):
+        assert accel_jump(mixed, tb) < 1e-3, tb
+        assert rate_jump(mixed, tb) < 1e-5, tb
+
+
+def test_zero_transition_is_a_step():
+    """transition_s = 0: the turn starts at once, the lateral acceleration s ψ' steps."""
+    segs = [
+        {"duration_s": 5, "accel_mps2": 2, "transition_s": 0},
+        {"duration_s": 5, "accel_mps2": 2, "heading_rate_dps": 10, "transition_s": 0},
+    ]
+    traj = SegmentsTrajectory.from_config(INITIAL, segs)
+    assert accel_jump(traj, 2.5) < 1e-6  # inside a segment: constant acceleration
+    assert accel_jump(traj, 5.0) == pytest.approx(10.0 * math.radians(10), rel=1e-3)
+    assert rate_jump(traj, 5.0) == pytest.approx(math.radians(10), rel=1e-3)
+    smooth = SegmentsTrajectory.from_config(INITIAL, [dict(s, transition_s=1.0) for s in segs])
+    assert accel_jump(smooth, 5.0) < 1e-3
+    assert rate_jump(smooth, 5.0) < 1e-5
+
+
+def test_ninety_degree_turn():
+    """9°/s for 10 s: the ramps in and out (½ τ r each) add up to exactly 90°."""
+    init = dict(
+        INITIAL,
+        velocity_ned_mps=[
+            100.0 * math.cos(math.radians(30)),
+            100.0 * math.sin(math.radians(30)),
+            0.0,
+        ],
+    )
+    segs = [{"duration_s": 10, "heading_rate_dps": 9}, {"duration_s": 5}]
+    traj = SegmentsTrajectory.from_config(init, segs)
+    end = traj.local_truth(np.array([15.0]))
+    _, _, heading = euler_from_dcm(end.c_b_n[0])
+    assert math.degrees(heading) == pytest.approx(120.0, abs=1e-9)
+    # No sideslip: the track follows the heading, the speed is unchanged.
+    v = end.v_ned[0]
+    assert math.degrees(math.atan2(v[1], v[0])) == pytest.approx(120.0, abs=1e-9)
+    assert np.hypot(v[0], v[1]) == pytest.approx(100.0, abs=1e-9)
+
+
+def test_speed_after_acceleration():
+    segs = [{"duration_s": 20, "accel_mps2": 2.5}, {"duration_s": 10}]
+    traj = SegmentsTrajectory.from_config(INITIAL, segs)
+    lt = traj.local_truth(np.array([30.0]))
+    assert np.linalg.norm(lt.v_ned[0]) == pytest.approx(50.0, abs=1e-9)
+    assert math.degrees(math.atan2(lt.v_ned[0, 1], lt.v_ned[0, 0])) == pytest.approx(30.0)
+
+
+def test_climb_reaches_target():
+    segs = [{"duration_s": 20, "climb_rate_mps": 6, "transition_s": 8}, {"duration_s": 10}]
+    traj = SegmentsTrajectory.from_config(dict(INITIAL, velocity_ned_mps=[50, 0, 0]), segs)
+    t = np.array([4.0, 8.0, 15.0, 30.0])
+    lt = traj.local_truth(t)
+    assert 0.0 < -lt.v_ned[0, 2] < 6.0
+    np.testing.assert_allclose(-lt.v_ned[1:, 2], 6.0, atol=1e-12)  # held after the ramp
+    # Altitude gained: 6 m/s for 30 s minus half the ramp (symmetric quintic: ½ τ v).
+    assert lt.alt[-1] - 300.0 == pytest.approx(6.0 * 30.0 - 0.5 * 8.0 * 6.0, abs=1e-9)
+
+
+def test_velocity_is_derivative_of_position(mixed):
+    """4th-order central differences of ECEF position match C_N^E v^N to < 1e-6 m/s."""
+    rng = np.random.default_rng(0)
+    h = 0.01
+    t = np.sort(rng.uniform(0.1, mixed.duration - 0.1, 3000))
+    bounds = boundaries([s["duration_s"] for s in MIXED])
+    knots = np.concatenate([bounds, bounds + 1.0, bounds + 2.0, bounds + 4.0, bounds + 5.0])
+    t = t[np.min(np.abs(t[:, None] - knots[None, :]), axis=1) > 3 * h]  # stencil off the knots
+
+    def r_ecef(tt):
+        lt = mixed.local_truth(tt)
+        return geodetic_to_ecef(lt.lat, lt.lon, lt.alt)
+
+    fd = (8 * (r_ecef(t + h) - r_ecef(t - h)) - (r_ecef(t + 2 * h) - r_ecef(t - 2 * h))) / (12 * h)
+    lt = mixed.local_truth(t)
+    v_e = np.einsum("nij,nj->ni", dcm_ned_to_ecef(lt.lat, lt.lon), lt.v_ned)
+    err = np.abs(fd - v_e).max()
+    assert err < 1e-6, err
+    assert np.abs(v_e).max() > 100.0  # the check is not vacuous
+
+
+def test_vectorized_evaluation_is_fast(mixed):
+    t = np.linspace(0.0, mixed.duration, 120_000)
+    start = time.perf_counter()
+    lt = mixed.local_truth(t)
+    elapsed = time.perf_counter() - start
+    assert lt.c_b_n.shape == (120_000, 3, 3)
+    assert elapsed < 1.0, elapsed
+    # Same values one by one as vectorized.
+    one = mixed.local_truth(t[[12345]])
+    assert one.lat[0] == lt.lat[12345] and np.array_equal(one.c_b_n[0], lt.c_b_n[12345])
+
+
+def test_initial_state_is_reproduced(mixed):
+    lt = mixed.local_truth(np.array([0.0]))
+    assert lt.lat[0] == math.radians(45.0) and lt.lon[0] == math.radians(7.0)
+    assert lt.alt[0] == 300.0
+    np.testing.assert_array_equal(lt.v_ned[0], 0.0)
+    roll, pitch, heading = euler_from_dcm(lt.c_b_n[0])
+    assert math.degrees(heading[()]) == pytest.approx(30.0, abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("segments", "key"),
+    [
+        ([{"duration_s": -1}], "segments[0].duration_s"),
+        ([{"duration_s": 5, "heading_rate_dps": float("nan")}], "segments[0].heading_rate_dps"),
+        ([{"duration_s": 5, "accel_mps2": "fast"}], "segments[0].accel_mps2"),
+        ([{"duration_s": 5, "transition_s": 6}], "segments[0].transition_s"),
+        ([{"duration_s": 5, "accel_ned_mps2": [1, 2]}], "segments[0].accel_ned_mps2"),
+        (
+            [{"duration_s": 5, "accel_ned_mps2": [1, 2, 3], "climb_rate_mps": 1}],
+            "segments[0].accel_ned_mps2",
+        ),
+        ([{"duration_s": 5, "wobble": 1}], "segments[0].wobble"),
+        ([{"duration_s": 5}, {"heading_rate_dps": 1}], "segments[1].duration_s"),
+        # Impossible trajectories.
+        ([{"duration_s": 10}, {"duration_s": 10, "accel_mps2": -3}], "segments[1].accel_mps2"),
+        ([{"duration_s": 100, "pitch_rate_dps": 1}], "segments[0].pitch_rate_dps"),
+        (
+            [{"duration_s": 100, "climb_rate_mps": -200, "transition_s": 10}],
+            "segments[0].climb_rate_mps",
+        ),
+        ([{"duration_s": 5, "climb_rate_mps": 3, "transition_s": 0}], "segments[0].climb_rate_mps"),
+    ],
+)
+def test_bad_values_name_the_key(segments, key):
+    with pytest.raises(ValueError, match=key.replace("[", r"\[").replace("]", r"\]")):
+        SegmentsTrajectory.from_config(dict(INITIAL, velocity_ned_mps=[20, 0, 0]), segments)
+
+
+def test_bad_initial_names_the_key():
+    with pytest.raises(ValueError, match="initial.latitude_deg"):
+        SegmentsTrajectory.from_config(dict(INITIAL, latitude_deg=95.0), [{"duration_s": 1}])
+    with pytest.raises(ValueError, match=r"initial.velocity_ned_mps\[1\]"):
+        SegmentsTrajectory.from_config(
+            dict(INITIAL, velocity_ned_mps=[0, None, 0]), [{"duration_s": 1}]
+        )
+
+
+def test_times_outside_the_trajectory_are_rejected(mixed):
+    with pytest.raises(ValueError, match="times must lie"):
+        mixed.local_truth(np.array([mixed.duration + 1.0]))
