@@ -3,6 +3,8 @@
 One synthetic stream of M cycles gives M Imu + (M+1) Odometry + (M+1) NavSatFix messages
 (:mod:`strapdown_ros.messages`). In the same process:
 
+* ``fields``: the three field containers from the stream, by separate calls and by
+  :func:`strapdown_ros.messages.stream_fields` (shared E0 → ECEF and geodetic conversion);
 * ``bulk``: :func:`strapdown_ros.bag.cdr.serialize` of the three field containers to
   ``list[bytes]``;
 * ``rosbags``: ``Typestore.serialize_cdr`` called once per message on pre-built message objects
@@ -143,7 +145,11 @@ def main() -> None:
         f"messages: {n_msgs} ({args.cycles} Imu + {args.cycles + 1} Odometry + "
         f"{args.cycles + 1} NavSatFix)"
     )
-    print(f"stream -> message fields (messages.py): {t_fields:.3f} s")
+    print(f"stream -> message fields (messages.py): {t_fields:.3f} s (three separate calls)")
+    t_shared, shared = best_of(lambda: msg.stream_fields(stream), args.repeats)
+    trio = (shared.imu, shared.odometry, shared.navsatfix)
+    assert all(a.equals(b) for a, b in zip(trio, fields, strict=True))
+    print(f"  same with msg.stream_fields:          {t_shared:.3f} s (E0->E, geodetic once)")
 
     t_bulk, bulk = best_of(lambda: [cdr.serialize(f) for f in fields], args.repeats)
     print(

@@ -8,20 +8,32 @@ This module only orchestrates: the mathematics is in :mod:`strapdown_ros.core` a
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import queue
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.reference import build_trajectory, generate_reference
+from strapdown_ros.core.trajectory.base import Trajectory
+from strapdown_ros.reference import build_trajectory, generate_reference_chunks, output_cycles
 from strapdown_ros.scenario import Scenario
 
-__all__ = ["DatasetSummary", "generate_dataset", "reference_batches"]
+__all__ = [
+    "DatasetSummary",
+    "generate_dataset",
+    "merge_residuals",
+    "reference_batch_chunks",
+    "reference_batches",
+]
 
 Progress = Callable[[str, int, int], None]
 
@@ -76,6 +88,86 @@ class DatasetSummary:
         return "\n".join(lines)
 
 
+def reference_batch_chunks(
+    scenario: Scenario, trajectory: Trajectory | None = None
+) -> Iterator[tuple[Stream, list[Batch]]]:
+    """Pieces of the reference stream with their serialized batches, in stamp order.
+
+    Consecutive pieces share one truth sample; it is published (and written) once, with the
+    earlier piece. Concatenating the batches of all pieces gives exactly
+    ``reference_batches(scenario, generate_reference(scenario))``.
+    """
+    for k, piece in enumerate(generate_reference_chunks(scenario, trajectory)):
+        batches = reference_batches(scenario, piece)
+        if k:
+            batches = [_drop_up_to(b, piece.t0_ns) for b in batches]
+        yield piece, batches
+
+
+def _drop_up_to(b: Batch, stamp_ns: int) -> Batch:
+    keep = int(np.searchsorted(b.stamps_ns, stamp_ns, side="right"))
+    if keep == 0:
+        return b
+    return Batch(b.topic, b.msgtype, b.stamps_ns[keep:], b.payloads[keep:])
+
+
+_END = "end"
+
+
+def _produce(items: Iterator[object], out: object) -> None:
+    """Producer body (thread or forked process): put every item, then _END or the exception."""
+    try:
+        for item in items:
+            out.put(item)  # type: ignore[attr-defined]
+        out.put(_END)  # type: ignore[attr-defined]
+    except BaseException as exc:  # re-raised by the consumer
+        out.put(exc)  # type: ignore[attr-defined]
+
+
+class _Producer:
+    """Computes the next pieces while the caller writes the previous ones.
+
+    On Linux the producer is a forked process (true parallelism on the second core; the
+    already-built trajectory is inherited, pieces come back pickled); elsewhere a thread.
+    At most ``depth`` pieces wait in the queue, which bounds memory.
+    """
+
+    def __init__(self, items: Iterator[object], depth: int = 2) -> None:
+        if "fork" in mp.get_all_start_methods():
+            ctx = mp.get_context("fork")
+            self._queue = ctx.Queue(maxsize=depth)
+            self._worker: threading.Thread | mp.process.BaseProcess = ctx.Process(
+                target=_produce, args=(items, self._queue), daemon=True
+            )
+        else:
+            self._queue = queue.Queue(maxsize=depth)  # type: ignore[assignment]
+            self._worker = threading.Thread(target=_produce, args=(items, self._queue), daemon=True)
+        self._worker.start()
+
+    def __iter__(self) -> Iterator[object]:
+        while True:
+            try:
+                item = self._queue.get(timeout=1.0)
+            except queue.Empty:
+                if not self._worker.is_alive():
+                    raise RuntimeError("the generator worker died without a result") from None
+                continue
+            if isinstance(item, str) and item == _END:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            yield item
+
+    def close(self) -> None:
+        """Stop the worker (if still running) and release the queue."""
+        if isinstance(self._worker, threading.Thread):
+            return  # a daemon thread; it ends with the iterator or the process
+        if self._worker.is_alive():
+            self._worker.terminate()
+        self._worker.join(timeout=5)
+        self._queue.close()
+
+
 def generate_dataset(
     scenario: Scenario,
     out: str | Path,
@@ -88,7 +180,8 @@ def generate_dataset(
 
     The scenario and its trajectory are fully validated before anything is computed or written;
     the bag is written atomically (nothing is left at ``out`` on error) and an existing ``out``
-    is only replaced with ``force``.
+    is only replaced with ``force``. The computation runs piece by piece in a producer thread
+    while the bag writer writes the previous piece.
     """
     start = time.perf_counter()
     storage = storage or scenario.recording.storage
@@ -96,26 +189,43 @@ def generate_dataset(
     # Fail early on the destination (BagWriter checks again when it opens).
     if out.exists() and not force:
         raise FileExistsError(f"{out} exists already; not overwriting (use --force)")
-
-    def report(stage: str, done: int, total: int) -> None:
-        if progress is not None:
-            progress(stage, done, total)
-
     trajectory = build_trajectory(scenario)  # validates the kind's parameters
-    report("reference", 0, 1)
-    reference = generate_reference(scenario, trajectory)
-    report("reference", 1, 1)
-    batches = reference_batches(scenario, reference)
+    total = output_cycles(scenario, trajectory)
     summary = DatasetSummary(
         path=out,
         storage=storage,
         rate_hz=scenario.rate_hz,
-        cycles=reference.cycles,
-        duration_s=reference.cycles * reference.period,
+        cycles=total,
+        duration_s=total * scenario.period_ns * 1e-9,
     )
-    summary.residuals["reference"] = stream_residuals(reference)
-    with BagWriter(out, storage=storage, force=force) as writer:
-        writer.write_batches(batches, progress=lambda d, t: report("writing", d, t))
-        summary.topics = dict(writer.message_counts)
+    residuals: list[Residuals] = []
+
+    def pieces() -> Iterator[tuple[int, Residuals, list[Batch]]]:
+        for piece, batches in reference_batch_chunks(scenario, trajectory):
+            yield piece.cycles, stream_residuals(piece), batches
+
+    producer = _Producer(pieces())
+    done = 0
+    try:
+        with BagWriter(out, storage=storage, force=force) as writer:
+            for cycles, res, batches in producer:  # type: ignore[misc]
+                writer.write_batches(batches)
+                residuals.append(res)
+                done += cycles
+                if progress is not None:
+                    progress("generating", done, total)
+            summary.topics = dict(writer.message_counts)
+    finally:
+        producer.close()
+    summary.residuals["reference"] = merge_residuals(residuals)
     summary.elapsed_s = time.perf_counter() - start
     return summary
+
+
+def merge_residuals(parts: list[Residuals]) -> Residuals:
+    """Residuals of consecutive pieces as one (cycles in order)."""
+    return Residuals(
+        attitude=np.concatenate([p.attitude for p in parts]) if parts else np.zeros(0),
+        velocity=np.concatenate([p.velocity for p in parts]) if parts else np.zeros(0),
+        position=np.concatenate([p.position for p in parts]) if parts else np.zeros(0),
+    )

@@ -33,8 +33,10 @@ provided" (:data:`COVARIANCE_NOT_PROVIDED`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import NamedTuple
+from functools import cached_property
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,7 +54,6 @@ from strapdown_ros.core.rotations import (
     dcm_to_flu_enu,
     flu_to_frd,
     frd_to_flu,
-    quat_from_dcm,
 )
 from strapdown_ros.core.stream import Stream
 
@@ -72,6 +73,7 @@ __all__ = [
     "ImuIncrements",
     "NavSatFixFields",
     "OdometryFields",
+    "StreamFields",
     "Vector3StampedFields",
     "clock_fields",
     "imu_fields",
@@ -86,6 +88,7 @@ __all__ = [
     "quat_ros_from_dcm",
     "dcm_from_quat_ros",
     "stamps_to_sec_nanosec",
+    "stream_fields",
     "stream_from_messages",
     "vector3_stamped_fields",
 ]
@@ -243,9 +246,33 @@ def stamps_to_sec_nanosec(stamps_ns: ArrayLike) -> tuple[NDArray[np.int32], NDAr
 
 
 def quat_ros_from_dcm(c: ArrayLike) -> F64:
-    """ROS quaternion ``(x, y, z, w)``, ``w >= 0``, of a DCM ``C_A^B`` (frame A relative to B)."""
-    q = quat_from_dcm(c)
-    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+    """ROS quaternion ``(x, y, z, w)``, ``w >= 0``, of a DCM ``C_A^B`` (frame A relative to B).
+
+    Bit for bit :func:`~strapdown_ros.core.rotations.quat_from_dcm` (Shepperd, largest pivot)
+    reordered, computed without the (..., 4, 4) candidate matrix: the same element-wise
+    expressions, only the pivot's row selected, normalized by the same call.
+    """
+    c = np.asarray(c, dtype=np.float64)
+    if c.shape[-2:] != (3, 3):
+        raise ValueError(f"expected an array of 3x3 matrices (..., 3, 3), got shape {c.shape}")
+    c00, c01, c02 = c[..., 0, 0], c[..., 0, 1], c[..., 0, 2]
+    c10, c11, c12 = c[..., 1, 0], c[..., 1, 1], c[..., 1, 2]
+    c20, c21, c22 = c[..., 2, 0], c[..., 2, 1], c[..., 2, 2]
+    tr = np.trace(c, axis1=-2, axis2=-1)
+    pivot = np.argmax(np.stack([tr, c00, c11, c22], axis=-1), axis=-1)
+    d01, d02, d03 = c21 - c12, c02 - c20, c10 - c01
+    s12, s13, s23 = c10 + c01, c02 + c20, c21 + c12
+    q = np.empty(c.shape[:-2] + (4,))  # w, x, y, z (C order, as quat_from_dcm's)
+    np.choose(pivot, [1 + tr, d01, d02, d03], out=q[..., 0])
+    np.choose(pivot, [d01, 1 + 2 * c00 - tr, s12, s13], out=q[..., 1])
+    np.choose(pivot, [d02, s12, 1 + 2 * c11 - tr, s23], out=q[..., 2])
+    np.choose(pivot, [d03, s13, s23, 1 + 2 * c22 - tr], out=q[..., 3])
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)  # as quat_normalize
+    out = np.empty_like(q)
+    out[..., :3] = q[..., 1:]
+    out[..., 3] = q[..., 0]
+    np.negative(out, out=out, where=q[..., :1] < 0.0)  # canonical sign w >= 0
+    return out
 
 
 def dcm_from_quat_ros(q_xyzw: ArrayLike) -> F64:
@@ -372,16 +399,33 @@ def imu_fields_from_increments(
     )
 
 
-def _ecef_truth(stream: Stream) -> tuple[F64, F64, F64]:
-    """``r^E, v^E, C_B^E`` (FRD) at t_m, m = 0..M, of a stream (E0 → E at ``t = t_m - t0``)."""
-    r_e, v_e, c_b_e = e0_state_to_ecef(stream.t, stream.r_e0, stream.v_e0, stream.c_b_e0)
-    assert c_b_e is not None
-    return r_e, v_e, c_b_e
+class _Truth:
+    """Earth-referenced truth of a stream at t_m, m = 0..M, each part computed once, on demand.
 
+    Shared by the Imu, Odometry and NavSatFix fields of one stream (:func:`stream_fields`); the
+    E0 → E conversion and the extended-precision geodetic conversion dominate their cost.
+    """
 
-def _c_frd_ned(r_e: F64, c_b_e: F64) -> F64:
-    lat, lon, _ = ecef_to_geodetic(r_e)
-    return np.swapaxes(dcm_ned_to_ecef(lat, lon), -1, -2) @ c_b_e
+    def __init__(self, stream: Stream) -> None:
+        self.stream = stream
+
+    @cached_property
+    def ecef(self) -> tuple[F64, F64, F64]:
+        """``r^E, v^E, C_B^E`` (FRD), E0 → E at ``t = t_m - t0``."""
+        s = self.stream
+        r_e, v_e, c_b_e = e0_state_to_ecef(s.t, s.r_e0, s.v_e0, s.c_b_e0)
+        assert c_b_e is not None
+        return r_e, v_e, c_b_e
+
+    @cached_property
+    def geodetic(self) -> tuple[F64, F64, F64]:
+        """Geodetic latitude, longitude (rad) and altitude (m) of ``r^E`` (exact)."""
+        return ecef_to_geodetic(self.ecef[0])
+
+    def c_frd_ned(self) -> F64:
+        """``C_FRD^NED`` at t_m, m = 1..M (the Imu messages)."""
+        lat, lon, _ = self.geodetic
+        return np.swapaxes(dcm_ned_to_ecef(lat[1:], lon[1:]), -1, -2) @ self.ecef[2][1:]
 
 
 def imu_fields(
@@ -399,17 +443,34 @@ def imu_fields(
     streams; ``False`` marks it not provided (measured data). Covariance specs as in
     :func:`imu_fields_from_increments`.
     """
-    c = None
-    if orientation:
-        r_e, _, c_b_e = _ecef_truth(stream)
-        c = _c_frd_ned(r_e[1:], c_b_e[1:])
+    return _imu_fields(
+        stream,
+        _Truth(stream),
+        frame_id,
+        orientation=orientation,
+        orientation_covariance=orientation_covariance,
+        angular_velocity_covariance=angular_velocity_covariance,
+        linear_acceleration_covariance=linear_acceleration_covariance,
+    )
+
+
+def _imu_fields(
+    stream: Stream,
+    truth: _Truth,
+    frame_id: str,
+    *,
+    orientation: bool = True,
+    orientation_covariance: object = None,
+    angular_velocity_covariance: object = None,
+    linear_acceleration_covariance: object = None,
+) -> ImuFields:
     return imu_fields_from_increments(
         stream.stamps_ns[1:],
         stream.dalpha,
         stream.dv,
         stream.period_ns,
         frame_id,
-        c_frd_ned=c,
+        c_frd_ned=truth.c_frd_ned() if orientation else None,
         orientation_covariance=orientation_covariance,
         angular_velocity_covariance=angular_velocity_covariance,
         linear_acceleration_covariance=linear_acceleration_covariance,
@@ -479,7 +540,26 @@ def odometry_fields(
     ``twist.angular`` is ``FLU(Δα_m / T - C_E^B ω_ie^E)`` with the cycle ending at ``t_m``
     (cycle 1 for m = 0; for a stream without cycles the body is taken at rest on the Earth).
     """
-    r_e, v_e, c_b_e = _ecef_truth(stream)
+    return _odometry_fields(
+        stream,
+        _Truth(stream),
+        child_frame_id,
+        frame_id,
+        pose_covariance=pose_covariance,
+        twist_covariance=twist_covariance,
+    )
+
+
+def _odometry_fields(
+    stream: Stream,
+    truth: _Truth,
+    child_frame_id: str,
+    frame_id: str,
+    *,
+    pose_covariance: object = None,
+    twist_covariance: object = None,
+) -> OdometryFields:
+    r_e, v_e, c_b_e = truth.ecef
     n = stream.cycles + 1
     if stream.cycles:
         w_ib = np.concatenate([stream.dalpha[:1], stream.dalpha]) / stream.period
@@ -543,8 +623,24 @@ def navsatfix_fields(
     position_covariance_type: int | None = None,
 ) -> NavSatFixFields:
     """NavSatFix (truth) fields of a stream, m = 0..M: geodetic position of ``r^E(t_m)``."""
-    r_e, _, _ = _ecef_truth(stream)
-    lat, lon, alt = ecef_to_geodetic(r_e)
+    return _navsatfix_fields(
+        stream,
+        _Truth(stream),
+        frame_id,
+        position_covariance=position_covariance,
+        position_covariance_type=position_covariance_type,
+    )
+
+
+def _navsatfix_fields(
+    stream: Stream,
+    truth: _Truth,
+    frame_id: str,
+    *,
+    position_covariance: ArrayLike | None = None,
+    position_covariance_type: int | None = None,
+) -> NavSatFixFields:
+    lat, lon, alt = truth.geodetic
     return navsatfix_fields_from_geodetic(
         stream.stamps_ns,
         lat,
@@ -553,6 +649,39 @@ def navsatfix_fields(
         frame_id,
         position_covariance=position_covariance,
         position_covariance_type=position_covariance_type,
+    )
+
+
+class StreamFields(NamedTuple):
+    """Odometry, NavSatFix and Imu fields of one stream (None where not requested)."""
+
+    odometry: OdometryFields | None
+    navsatfix: NavSatFixFields | None
+    imu: ImuFields | None
+
+
+def stream_fields(
+    stream: Stream,
+    body_frame: str = DEFAULT_BODY_FRAME,
+    earth_frame: str = EARTH_FRAME,
+    *,
+    odometry: bool = True,
+    navsatfix: bool = True,
+    imu: bool = True,
+    imu_kwargs: Mapping[str, object] | None = None,
+) -> StreamFields:
+    """The :func:`odometry_fields`, :func:`navsatfix_fields` and :func:`imu_fields` of a stream.
+
+    Equal, bit for bit, to the three calls with default covariances (``imu_kwargs`` are passed
+    to :func:`imu_fields`), but the E0 → E conversion and the geodetic conversion are computed
+    once for all three.
+    """
+    truth = _Truth(stream)
+    kw: dict[str, Any] = dict(imu_kwargs or {})
+    return StreamFields(
+        _odometry_fields(stream, truth, body_frame, earth_frame) if odometry else None,
+        _navsatfix_fields(stream, truth, body_frame) if navsatfix else None,
+        _imu_fields(stream, truth, body_frame, **kw) if imu else None,
     )
 
 

@@ -17,6 +17,7 @@ Steps (SPEC §2-§3, Savage 2020):
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -31,8 +32,12 @@ from strapdown_ros.scenario import Scenario, ScenarioError
 __all__ = [
     "build_trajectory",
     "decimate",
+    "concatenate_streams",
     "generate_reference",
+    "generate_reference_chunks",
+    "slice_stream",
     "natural_duration",
+    "output_cycles",
     "smooth_displacement",
 ]
 
@@ -112,7 +117,7 @@ def natural_duration(scenario: Scenario, trajectory: Trajectory | None) -> float
     return float(sum(float(s.get("duration_s", 0.0)) for s in scenario.trajectory["segments"]))
 
 
-def _output_cycles(scenario: Scenario, trajectory: Trajectory | None) -> int:
+def output_cycles(scenario: Scenario, trajectory: Trajectory | None) -> int:
     natural = natural_duration(scenario, trajectory)
     duration = scenario.duration_s if scenario.duration_s is not None else natural
     if duration > natural + 1e-9:
@@ -168,32 +173,55 @@ def decimate(stream: Stream, factor: int) -> Stream:
     )
 
 
-def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None) -> Stream:
-    """The reference stream of ``scenario`` at its output rate (SPEC §2-§3).
+#: Output cycles per chunk of the offline path (even, so Method 2 pairs never straddle chunks).
+#: Every chunk is computed independently (Method 2 pairs only depend on their constraints), so
+#: the chunking changes neither the results nor the messages; it bounds memory and lets the
+#: bag writer overlap the computation.
+CHUNK_CYCLES = 20_000
+#: The first chunk is short so that a consumer (the bag writer) can start early.
+FIRST_CHUNK_CYCLES = 2_000
 
-    Parameters
-    ----------
-    scenario : Scenario
-        Validated scenario.
-    trajectory : Trajectory, optional
-        Pre-built model (from :func:`build_trajectory`); built here if omitted.
+
+def _chunk_bounds(total: int, chunk_cycles: int, first_cycles: int) -> Iterator[tuple[int, int]]:
+    m0 = 0
+    size = min(first_cycles, chunk_cycles)
+    while m0 < total:
+        m1 = min(m0 + size, total)
+        yield m0, m1
+        m0, size = m1, chunk_cycles
+
+
+def generate_reference_chunks(
+    scenario: Scenario,
+    trajectory: Trajectory | None = None,
+    chunk_cycles: int = CHUNK_CYCLES,
+    first_cycles: int = FIRST_CHUNK_CYCLES,
+) -> Iterator[Stream]:
+    """The reference stream of ``scenario`` in consecutive pieces at the output rate.
+
+    Piece k covers output cycles ``m0..m1`` (truth at m0..m1, increments of m0+1..m1) with
+    ``m0`` of piece k equal to ``m1`` of piece k-1: consecutive pieces share one truth sample.
     """
+    if chunk_cycles < 2 or chunk_cycles % 2 or first_cycles < 2 or first_cycles % 2:
+        raise ValueError(
+            f"chunk sizes must be even and >= 2, got {chunk_cycles} and {first_cycles}"
+        )
     if trajectory is None and scenario.trajectory["kind"] != "increments":
         trajectory = build_trajectory(scenario)
-    out_cycles = _output_cycles(scenario, trajectory)
-    gen_cycles = out_cycles * scenario.oversample
+    out_cycles = output_cycles(scenario, trajectory)
+    oversample = scenario.oversample
     gen_period_ns = scenario.generation_period_ns
     model = scenario.gravity_model
 
-    if trajectory is None:  # kind: increments, exact by construction
+    if trajectory is None:  # kind: increments, exact by construction (sequential integration)
         from strapdown_ros.core.trajectory.increments import generate_increments_stream
 
         try:
             assert scenario.initial is not None
-            stream = generate_increments_stream(
+            full = generate_increments_stream(
                 scenario.initial.as_dict(),
                 scenario.trajectory["segments"],
-                scenario.rate_hz * scenario.oversample,
+                scenario.rate_hz * oversample,
                 scenario.start_time_ns,
                 gravity_model=model,
             )
@@ -201,11 +229,16 @@ def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None)
             raise
         except (ValueError, TypeError, KeyError) as exc:
             raise _wrap("trajectory.segments", exc) from exc
-        stream = _truncate(stream, gen_cycles)
-    else:
-        t = np.arange(gen_cycles + 1, dtype=np.int64) * gen_period_ns * 1e-9
+        full = decimate(_truncate(full, out_cycles * oversample), oversample)
+        for m0, m1 in _chunk_bounds(out_cycles, chunk_cycles, first_cycles):
+            yield slice_stream(full, m0, m1)
+        return
+
+    period = gen_period_ns * 1e-9
+    for m0, m1 in _chunk_bounds(out_cycles, chunk_cycles, first_cycles):
+        g0, g1 = m0 * oversample, m1 * oversample  # g0 is even: pairs align across chunks
+        t = np.arange(g0, g1 + 1, dtype=np.int64) * gen_period_ns * 1e-9
         truth = local_to_e0(trajectory.local_truth(t))
-        period = gen_period_ns * 1e-9
         solution = method2(
             truth.c_b_e0,
             truth.r_e0,
@@ -215,7 +248,7 @@ def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None)
             displacement=smooth_displacement(truth.r_e0, truth.v_e0, period),
         )
         stream = Stream(
-            t0_ns=scenario.start_time_ns,
+            t0_ns=scenario.start_time_ns + g0 * gen_period_ns,
             period_ns=gen_period_ns,
             dalpha=solution.dalpha,
             dv=solution.dv,
@@ -223,8 +256,51 @@ def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None)
             v_e0=solution.v_e0,
             r_e0=solution.r_e0,
             gravity_model=model,
+            e0_epoch_ns=scenario.start_time_ns,
         )
-    return decimate(stream, scenario.oversample)
+        yield decimate(stream, oversample)
+
+
+def slice_stream(stream: Stream, m0: int, m1: int) -> Stream:
+    """Cycles ``m0..m1`` of a stream (truth m0..m1, increments m0+1..m1), restamped at m0."""
+    return replace(
+        stream,
+        t0_ns=stream.t0_ns + m0 * stream.period_ns,
+        dalpha=stream.dalpha[m0:m1],
+        dv=stream.dv[m0:m1],
+        c_b_e0=stream.c_b_e0[m0 : m1 + 1],
+        v_e0=stream.v_e0[m0 : m1 + 1],
+        r_e0=stream.r_e0[m0 : m1 + 1],
+    )
+
+
+def concatenate_streams(pieces: Iterable[Stream]) -> Stream:
+    """Join consecutive pieces of :func:`generate_reference_chunks` (shared samples once)."""
+    pieces = list(pieces)
+    if not pieces:
+        raise ValueError("no stream pieces to concatenate")
+    first = pieces[0]
+    return replace(
+        first,
+        dalpha=np.concatenate([p.dalpha for p in pieces]),
+        dv=np.concatenate([p.dv for p in pieces]),
+        c_b_e0=np.concatenate([first.c_b_e0] + [p.c_b_e0[1:] for p in pieces[1:]]),
+        v_e0=np.concatenate([first.v_e0] + [p.v_e0[1:] for p in pieces[1:]]),
+        r_e0=np.concatenate([first.r_e0] + [p.r_e0[1:] for p in pieces[1:]]),
+    )
+
+
+def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None) -> Stream:
+    """The reference stream of ``scenario`` at its output rate (SPEC §2-§3), in one piece.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Validated scenario.
+    trajectory : Trajectory, optional
+        Pre-built model (from :func:`build_trajectory`); built here if omitted.
+    """
+    return concatenate_streams(generate_reference_chunks(scenario, trajectory))
 
 
 def _truncate(stream: Stream, cycles: int) -> Stream:

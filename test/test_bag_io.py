@@ -146,6 +146,48 @@ def test_bytes_equal_rosbags(msgtype):
         assert bytes(TS.serialize_cdr(m, msgtype)) == payloads[3]
 
 
+def test_blocks_and_constant_fields(monkeypatch):
+    """serialize() in blocks (reused buffer, skipped all-zero constant fields) stays exact."""
+    monkeypatch.setattr(cdr, "_BLOCK_BYTES", 1000)  # a few rows per block, ragged last block
+    rng = np.random.default_rng(11)
+    n = 23
+    t = _stamps(rng, n)
+    zeros36 = np.broadcast_to(np.zeros(36), (n, 36))
+    negzero36 = np.broadcast_to(np.full(36, -0.0), (n, 36))  # -0.0 is not all-zero bytes
+    odom = msg.OdometryFields(
+        t,
+        "earth",
+        "body",
+        rng.normal(size=(n, 3)),
+        rng.normal(size=(n, 8))[:, ::2],  # strided input
+        zeros36,
+        rng.normal(size=(n, 3)),
+        rng.normal(size=(n, 3)),
+        negzero36,
+    )
+    fix = msg.navsatfix_fields_from_geodetic(
+        t, *rng.normal(size=(3, n)), "gps", position_covariance=np.arange(9.0), service=5
+    )
+    imu = msg.ImuFields(
+        t,
+        "imu",
+        *(np.broadcast_to(x, (n, k)) for x, k in [([0, 0, 0, 1.0], 4), (np.zeros(9), 9)]),
+        rng.normal(size=(n, 3)),
+        np.broadcast_to(np.eye(3).ravel(), (n, 9)),
+        rng.normal(size=(n, 3)),
+        np.zeros((n, 9)),
+    )
+    for f in (odom, fix, imu):
+        msgtype = cdr.msgtype_of(f)
+        payloads = cdr.serialize(f)
+        assert payloads == cdr.split_rows(cdr.serialize_rows(f))
+        assert all(type(p) is bytes for p in payloads)
+        for i, p in enumerate(payloads):
+            assert p == bytes(TS.serialize_cdr(rosbags_message(f, i), msgtype)), (msgtype, i)
+        assert cdr.deserialize(msgtype, payloads).equals(f)
+    assert cdr.serialize(msg.ClockFields(np.zeros(0, np.int64))) == []
+
+
 def test_rclpy_reads_our_payloads_and_we_read_rclpys():
     from nav_msgs.msg import Odometry
     from rclpy.serialization import deserialize_message, serialize_message

@@ -10,7 +10,7 @@ from strapdown_ros.core.earth import (
     ecef_state_to_e0,
     geodetic_to_ecef,
 )
-from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_rotvec
+from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_rotvec, quat_from_dcm
 from strapdown_ros.core.stream import Stream
 
 T_NS = 10_000_000  # 100 Hz
@@ -186,3 +186,51 @@ def test_stamps_to_sec_nanosec():
     assert sec.dtype == np.int32 and nsec.dtype == np.uint32
     with pytest.raises(ValueError, match="int32"):
         msg.stamps_to_sec_nanosec(np.array([2**31 * 1_000_000_000]))
+
+
+def _special_dcms():
+    """Signed permutations (exact zeros), 180° rotations, -0.0 entries and random DCMs."""
+    from itertools import permutations, product
+
+    mats = []
+    for perm in permutations(range(3)):
+        for sign in product([1.0, -1.0], repeat=3):
+            m = np.zeros((3, 3))
+            m[range(3), perm] = sign
+            if np.linalg.det(m) > 0:
+                mats.append(m)
+    mats = np.array(mats)
+    rng = np.random.default_rng(7)
+    axes = rng.normal(size=(50, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    return np.concatenate(
+        [mats, np.where(mats == 0, -0.0, mats), dcm_from_rotvec(axes * np.pi)]
+        + [dcm_from_rotvec(rng.normal(size=(200, 3)))]
+    )
+
+
+def test_quat_ros_from_dcm_is_quat_from_dcm_bit_for_bit():
+    c = _special_dcms()
+    for cc in (c, c[5], c[::3], c.reshape(-1, 2, 3, 3)[:, 1]):
+        q = quat_from_dcm(cc)
+        want = np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+        got = msg.quat_ros_from_dcm(cc)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    with pytest.raises(ValueError):
+        msg.quat_ros_from_dcm(np.eye(4))
+
+
+def test_stream_fields_equal_separate_calls():
+    rng = np.random.default_rng(3)
+    m = 40
+    c = dcm_from_rotvec(rng.normal(size=(m + 1, 3)))
+    r = np.array([4.2e6, 0.9e6, 4.7e6]) + rng.normal(size=(m + 1, 3)) * 1e3
+    s = Stream(T0_NS, T_NS, rng.normal(size=(m, 3)), rng.normal(size=(m, 3)), c, r * 1e-4, r)
+    f = msg.stream_fields(s, "body", "earth")
+    assert f.odometry.equals(msg.odometry_fields(s, "body", "earth"))
+    assert f.navsatfix.equals(msg.navsatfix_fields(s, "body"))
+    assert f.imu.equals(msg.imu_fields(s, "body"))
+    kw = {"orientation": False, "angular_velocity_covariance": np.eye(3)}
+    g = msg.stream_fields(s, odometry=False, navsatfix=False, imu_kwargs=kw)
+    assert g.odometry is None and g.navsatfix is None
+    assert g.imu.equals(msg.imu_fields(s, **kw))

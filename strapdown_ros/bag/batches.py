@@ -19,9 +19,7 @@ from strapdown_ros.messages import (
     DEFAULT_BODY_FRAME,
     EARTH_FRAME,
     clock_fields,
-    imu_fields,
-    navsatfix_fields,
-    odometry_fields,
+    stream_fields,
 )
 
 __all__ = ["Batch", "batch", "clock_batch", "merge_order", "stream_batches"]
@@ -62,13 +60,22 @@ def stream_batches(
     ``imu_kwargs`` are passed to :func:`~strapdown_ros.messages.imu_fields` (covariances,
     ``orientation=False`` for measured data).
     """
+    f = stream_fields(
+        stream,
+        body_frame,
+        earth_frame,
+        odometry=bool(odom_topic),
+        navsatfix=bool(fix_topic),
+        imu=bool(imu_topic),
+        imu_kwargs=imu_kwargs,
+    )
     out = []
-    if odom_topic:
-        out.append(batch(odom_topic, odometry_fields(stream, body_frame, earth_frame)))
-    if fix_topic:
-        out.append(batch(fix_topic, navsatfix_fields(stream, body_frame)))
-    if imu_topic:
-        out.append(batch(imu_topic, imu_fields(stream, body_frame, **dict(imu_kwargs or {}))))
+    if odom_topic and f.odometry is not None:
+        out.append(batch(odom_topic, f.odometry))
+    if fix_topic and f.navsatfix is not None:
+        out.append(batch(fix_topic, f.navsatfix))
+    if imu_topic and f.imu is not None:
+        out.append(batch(imu_topic, f.imu))
     return out
 
 

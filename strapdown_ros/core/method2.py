@@ -25,13 +25,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from strapdown_ros.core.exact_update import exact_update, g_matrices
+from strapdown_ros.core.exact_update import g_matrices
 from strapdown_ros.core.rotations import rotvec_from_dcm
 
 __all__ = [
     "Method2Solution",
     "attitude_increments",
     "method2",
+    "PairSystem",
     "pair_displacement",
     "solve_pairs",
 ]
@@ -65,6 +66,102 @@ def attitude_increments(c_b_e0: ArrayLike) -> Array:
     return rotvec_from_dcm(_t(c[:-1]) @ c[1:])
 
 
+def _inv3(m: Array) -> Array:
+    """Inverses of an array of 3x3 matrices by the adjugate (fast for well-conditioned ones)."""
+    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    co = np.empty_like(m)
+    co[..., 0, 0], co[..., 0, 1], co[..., 0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
+    co[..., 1, 0], co[..., 1, 1], co[..., 1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
+    co[..., 2, 0], co[..., 2, 1], co[..., 2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
+    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
+    return co / det[..., None, None]
+
+
+class PairSystem:
+    """Savage 2020 eq. (31) for arrays of cycle pairs, factored once for repeated solves.
+
+    Subscripts: ``prev2`` = m-2 = 2n-2, ``prev1`` = m-1 = 2n-1, ``cur`` = m = 2n. ``gv1, gr1``
+    are G_V, G_R of cycle 2n-1; ``gv2, gr2`` of cycle 2n (eqs. (3), (4)). ``displacement``,
+    if given, replaces ``R_{2n} - R_{2n-2}`` (see :func:`method2`).
+
+    Everything but the odd-cycle gravity ``g_{2n-1}`` is fixed by the constraints, and the
+    numerators B_num of eqs. (26) and (29) are linear in it, so A (eqs. (23), (28)) and B_den
+    (eqs. (26), (29)) are formed and inverted once; :meth:`solve` then costs a few matrix-vector
+    products per pair.
+    """
+
+    def __init__(
+        self,
+        c_prev2: Array,
+        c_prev1: Array,
+        gv1: Array,
+        gr1: Array,
+        gv2: Array,
+        gr2: Array,
+        r_prev2: Array,
+        r_cur: Array,
+        v_prev2: Array,
+        v_cur: Array,
+        g_prev2: Array,
+        g_cur: Array,
+        period: float,
+        displacement: Array | None = None,
+    ) -> None:
+        t = period
+        eye = np.eye(3)
+        self.period = t
+        self.c_prev2 = c_prev2
+        self.cgv1 = c_prev2 @ gv1  # C_{2n-2} G_V,2n-1
+        self.cgr1 = c_prev2 @ gr1  # C_{2n-2} G_R,2n-1
+        cgrv1 = self.cgr1 + self.cgv1  # C_{2n-2} (G_R,2n-1 + G_V,2n-1)
+        cgv2 = c_prev1 @ gv2  # C_{2n-1} G_V,2n
+        cgr2 = c_prev1 @ gr2  # C_{2n-1} G_R,2n
+        dr = (r_cur - r_prev2 if displacement is None else displacement) - 2.0 * v_prev2 * t
+        dvel = v_cur - v_prev2
+        self.r_prev2, self.v_prev2, self.g_prev2 = r_prev2, v_prev2, g_prev2
+        # eq. (23): A_{2n-1} = C_{2n-1} G_R,2n (C_{2n-1} G_V,2n)^-1
+        a_odd = cgr2 @ _inv3(cgv2)
+        # eq. (28): A_{2n} = C_{2n-2} (G_R + G_V)_{2n-1} (C_{2n-2} G_V,2n-1)^-1
+        a_even = cgrv1 @ _inv3(self.cgv1)
+        # eqs. (26), (29): B_den, inverted once
+        self.b_inv_odd = _inv3((cgrv1 - a_odd @ self.cgv1) * t)
+        self.b_inv_even = _inv3((cgr2 - a_even @ cgv2) * t)
+
+        def numerator_without_g_prev1(a: Array) -> Array:
+            return (
+                dr
+                - _mv(a, dvel) * t
+                + (_mv(a / 2.0 - eye / 6.0, g_cur) + _mv(a / 2.0 - 5.0 * eye / 6.0, g_prev2))
+                * t
+                * t
+            )
+
+        self.num_odd = numerator_without_g_prev1(a_odd)
+        self.num_even = numerator_without_g_prev1(a_even)
+        self.k_odd = (a_odd - eye) * (t * t)  # coefficient of g_{2n-1} in B_num
+        self.k_even = (a_even - eye) * (t * t)
+
+    def solve(self, g_prev1: Array) -> tuple[Array, Array]:
+        """Δv_{2n-1} (eq. (27)) and Δv_{2n} (eq. (30)) for odd-cycle gravity ``g_prev1``."""
+        dv_odd = _mv(self.b_inv_odd, self.num_odd + _mv(self.k_odd, g_prev1))
+        dv_even = _mv(self.b_inv_even, self.num_even + _mv(self.k_even, g_prev1))
+        return dv_odd, dv_even
+
+    def odd_state(self, dv_odd: Array, g_prev1: Array) -> tuple[Array, Array]:
+        """V_{2n-1}, R_{2n-1} from eqs. (3), (4) applied over cycle 2n-1."""
+        t = self.period
+        v = self.v_prev2 + _mv(self.cgv1, dv_odd) + 0.5 * (g_prev1 + self.g_prev2) * t
+        r = (
+            self.r_prev2
+            + self.v_prev2 * t
+            + _mv(self.cgr1, dv_odd) * t
+            + (g_prev1 + 2.0 * self.g_prev2) * (t * t / 6.0)
+        )
+        return v, r
+
+
 def solve_pairs(
     c_prev2: Array,
     c_prev1: Array,
@@ -82,49 +179,15 @@ def solve_pairs(
     period: float,
     displacement: Array | None = None,
 ) -> tuple[Array, Array]:
-    """Savage 2020 eq. (31): Δv_{2n-1}, Δv_{2n} for arrays of cycle pairs.
+    """Savage 2020 eq. (31): Δv_{2n-1}, Δv_{2n} (m/s, body axes) for arrays of cycle pairs.
 
-    Subscripts: ``prev2`` = m-2 = 2n-2, ``prev1`` = m-1 = 2n-1, ``cur`` = m = 2n. ``gv1, gr1``
-    are G_V, G_R of cycle 2n-1; ``gv2, gr2`` of cycle 2n (eqs. (3), (4)). ``displacement``,
-    if given, replaces ``R_{2n} - R_{2n-2}`` (see :func:`method2`).
-
-    Returns
-    -------
-    (dv_odd, dv_even) : arrays (N, 3)
-        Δv_{2n-1} from eqs. (23), (26), (27) and Δv_{2n} from eqs. (28)-(30) (m/s, body axes).
+    One-shot form of :class:`PairSystem` (same subscripts and arguments, plus ``g_prev1``).
     """
-    t = period
-    eye = np.eye(3)
-    cgv2 = c_prev1 @ gv2  # C_{2n-1} G_V,2n
-    cgr2 = c_prev1 @ gr2  # C_{2n-1} G_R,2n
-    cgv1 = c_prev2 @ gv1  # C_{2n-2} G_V,2n-1
-    cgrv1 = c_prev2 @ (gr1 + gv1)  # C_{2n-2} (G_R,2n-1 + G_V,2n-1)
-    dr = (r_cur - r_prev2 if displacement is None else displacement) - 2.0 * v_prev2 * t
-    dvel = v_cur - v_prev2
-
-    def numerator(a: Array) -> Array:
-        # B_num of eqs. (26) and (29)
-        return (
-            dr
-            - _mv(a, dvel) * t
-            + (
-                _mv(a / 2.0 - eye / 6.0, g_cur)
-                + _mv(a - eye, g_prev1)
-                + _mv(a / 2.0 - 5.0 * eye / 6.0, g_prev2)
-            )
-            * t
-            * t
-        )
-
-    # eq. (23): A_{2n-1} = C G_R (C G_V)^-1, computed as solve((C G_V)^T, (C G_R)^T)^T
-    a_odd = _t(np.linalg.solve(_t(cgv2), _t(cgr2)))
-    b_den_odd = (cgrv1 - a_odd @ cgv1) * t  # eq. (26)
-    dv_odd = np.linalg.solve(b_den_odd, numerator(a_odd)[..., None])[..., 0]  # eq. (27)
-    # eq. (28): A_{2n} = C (G_R + G_V) (C G_V)^-1
-    a_even = _t(np.linalg.solve(_t(cgv1), _t(cgrv1)))
-    b_den_even = (cgr2 - a_even @ cgv2) * t  # eq. (29)
-    dv_even = np.linalg.solve(b_den_even, numerator(a_even)[..., None])[..., 0]  # eq. (30)
-    return dv_odd, dv_even
+    system = PairSystem(
+        c_prev2, c_prev1, gv1, gr1, gv2, gr2, r_prev2, r_cur, v_prev2, v_cur, g_prev2, g_cur,
+        period, displacement,
+    )  # fmt: skip
+    return system.solve(g_prev1)
 
 
 def pair_displacement(v_e0: ArrayLike, period: float) -> Array:
@@ -243,12 +306,13 @@ def method2(
     disp = None if displacement is None else np.asarray(displacement, dtype=np.float64)
     if disp is not None and disp.shape != (m_pairs, 3):
         raise ValueError(f"displacement must have shape ({m_pairs}, 3), got {disp.shape}")
+    system = PairSystem(
+        c[e0], c[od], gv[od - 1], gr[od - 1], gv[e1 - 1], gr[e1 - 1],
+        r[e0], r[e1], v[e0], v[e1], g[e0], g[e1], t, disp,
+    )  # fmt: skip
     for _ in range(max(1, iterations)):
-        dv_odd, dv_even = solve_pairs(
-            c[e0], c[od], gv[od - 1], gr[od - 1], gv[e1 - 1], gr[e1 - 1],
-            r[e0], r[e1], v[e0], v[e1], g[e0], g_odd, g[e1], t, disp,
-        )  # fmt: skip
-        _, v_odd, r_odd = exact_update(c[e0], v[e0], r[e0], dalpha[od - 1], dv_odd, g[e0], g_odd, t)
+        dv_odd, dv_even = system.solve(g_odd)
+        v_odd, r_odd = system.odd_state(dv_odd, g_odd)
         g_odd = gravity(r_odd)
     dv[od - 1], dv[e1 - 1] = dv_odd, dv_even
     r[od], v[od], g[od] = r_odd, v_odd, g_odd

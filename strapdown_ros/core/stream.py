@@ -38,6 +38,10 @@ class Stream:
         Position ``R^E0`` at t_m (m).
     gravity_model : str
         Gravitation model of the stream (SPEC §1, e.g. ``"j2"``); the exactness rule uses it.
+    e0_epoch_ns : int or None
+        Instant (ns since the epoch) at which E0 coincides with ECEF: the start of the whole
+        stream (SPEC §1). A piece of a longer stream keeps the start of the whole; ``None``
+        means ``t0_ns``.
     """
 
     t0_ns: int
@@ -48,9 +52,12 @@ class Stream:
     v_e0: Array
     r_e0: Array
     gravity_model: str = "j2"
+    e0_epoch_ns: int | None = None
 
     def __post_init__(self) -> None:
         """Check shapes so that a malformed stream fails where it is made."""
+        if self.e0_epoch_ns is None:
+            object.__setattr__(self, "e0_epoch_ns", self.t0_ns)
         m = self.dalpha.shape[0]
         if self.period_ns <= 0:
             raise ValueError(f"period_ns must be > 0, got {self.period_ns}")
@@ -73,8 +80,12 @@ class Stream:
 
     @property
     def t(self) -> Array:
-        """Times t_m - t0 (s) of the truth samples, m = 0..M (exact multiples of T in ns)."""
-        return np.arange(self.cycles + 1, dtype=np.int64) * self.period_ns * 1e-9
+        """Times (s) of the truth samples since the E0 epoch, m = 0..M (``C_E^E0 = Rz(ω t)``).
+
+        Computed from integer nanoseconds, so equal to ``t_m - t0`` exactly for a whole stream.
+        """
+        offset = self.t0_ns - int(self.e0_epoch_ns)  # type: ignore[arg-type]
+        return (offset + np.arange(self.cycles + 1, dtype=np.int64) * self.period_ns) * 1e-9
 
     @property
     def stamps_ns(self) -> NDArray[np.int64]:
