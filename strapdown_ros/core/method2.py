@@ -248,6 +248,7 @@ def method2(
     gravity: GravityFn,
     iterations: int = 3,
     displacement: ArrayLike | None = None,
+    cycle_gravity: Callable[[Array, Array], Array] | None = None,
 ) -> Method2Solution:
     """Generate increments meeting the constraints with Savage 2020 Method 2, vectorized.
 
@@ -272,6 +273,10 @@ def method2(
         difference of rounded positions carries ~1e-9 m of noise, which eq. (31) turns into
         ~1e-9/T² m/s² of white noise on the specific force (1e-3 m/s² at 1 kHz). The published
         positions stay the constraints, so the SPEC §3 residuals change by at most that 1e-9 m.
+    cycle_gravity : callable, optional
+        ``g(R, m)`` taking positions and their cycle indices, replacing ``gravity``: for models
+        that depend on the cycle, e.g. Savage 2020 Appendix C's expansion about the
+        reference's gravity at the same cycle (eq. (C-12)).
 
     Returns
     -------
@@ -301,8 +306,11 @@ def method2(
     g = np.empty_like(r_con)
     dv = np.empty_like(dalpha)
     r[0::2], v[0::2] = r_con[0::2], v_con[0::2]
-    g[0::2] = gravity(r[0::2])
-    g_odd = gravity(r_con[od]) if m_pairs else np.empty((0, 3))
+    def grav(x: Array, m: Array | int) -> Array:
+        return gravity(x) if cycle_gravity is None else cycle_gravity(x, np.asarray(m))
+
+    g[0::2] = grav(r[0::2], np.arange(0, n_cycles + 1, 2))
+    g_odd = grav(r_con[od], od) if m_pairs else np.empty((0, 3))
     disp = None if displacement is None else np.asarray(displacement, dtype=np.float64)
     if disp is not None and disp.shape != (m_pairs, 3):
         raise ValueError(f"displacement must have shape ({m_pairs}, 3), got {disp.shape}")
@@ -313,14 +321,14 @@ def method2(
     for _ in range(max(1, iterations)):
         dv_odd, dv_even = system.solve(g_odd)
         v_odd, r_odd = system.odd_state(dv_odd, g_odd)
-        g_odd = gravity(r_odd)
+        g_odd = grav(r_odd, od)
     dv[od - 1], dv[e1 - 1] = dv_odd, dv_even
     r[od], v[od], g[od] = r_odd, v_odd, g_odd
 
     if n_cycles % 2:  # final single cycle: eq. (9), position constraint at m = M
         m = n_cycles
         r[m] = r_con[m]
-        g[m] = gravity(r[m])
+        g[m] = grav(r[m], m)
         rhs = r[m] - r[m - 1] - v[m - 1] * t - (g[m] + 2.0 * g[m - 1]) * t * t / 6.0
         dv[m - 1] = np.linalg.solve(c[m - 1] @ gr[m - 1], rhs / t)
         v[m] = v[m - 1] + c[m - 1] @ (gv[m - 1] @ dv[m - 1]) + 0.5 * (g[m] + g[m - 1]) * t

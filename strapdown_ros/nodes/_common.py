@@ -1,0 +1,180 @@
+"""Small helpers shared by the ROS nodes: typed parameters, QoS, message classes, pacing.
+
+Parameter problems raise :class:`ParameterError`; a node's ``main`` turns it (and
+:class:`~strapdown_ros.scenario.ScenarioError`) into exit status 2, as ``strapdown-sim`` does.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import time
+from typing import Any
+
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+__all__ = [
+    "EXIT_FAILURE",
+    "EXIT_INVALID",
+    "EXIT_OK",
+    "Pacer",
+    "ParameterError",
+    "declare_bool",
+    "declare_int",
+    "declare_number",
+    "declare_string",
+    "declare_string_array",
+    "message_class",
+    "qos_from_parameters",
+]
+
+#: Exit statuses of the nodes (those of ``strapdown-sim``).
+EXIT_OK, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+
+RELIABILITY = {"reliable": ReliabilityPolicy.RELIABLE, "best_effort": ReliabilityPolicy.BEST_EFFORT}
+
+
+class ParameterError(ValueError):
+    """A node parameter is missing or invalid; ``name`` is the parameter."""
+
+    def __init__(self, name: str, problem: str) -> None:
+        self.name = name
+        self.problem = problem
+        super().__init__(f"parameter '{name}': {problem}")
+
+
+def _declare(node: Node, name: str, default: Any, description: str, dynamic: bool = False) -> Any:
+    descriptor = ParameterDescriptor(description=description, dynamic_typing=dynamic)
+    try:
+        return node.declare_parameter(name, default, descriptor).value
+    except Exception as exc:  # rclpy's InvalidParameterTypeException and the like
+        raise ParameterError(name, str(exc)) from exc
+
+
+def declare_string(node: Node, name: str, default: str, description: str = "") -> str:
+    """Declare a string parameter and return its value."""
+    value = _declare(node, name, default, description, dynamic=True)
+    if not isinstance(value, str):
+        raise ParameterError(name, f"must be a string, got {value!r}")
+    return value
+
+
+def declare_bool(node: Node, name: str, default: bool, description: str = "") -> bool:
+    """Declare a boolean parameter and return its value."""
+    value = _declare(node, name, default, description, dynamic=True)
+    if not isinstance(value, bool):
+        raise ParameterError(name, f"must be true or false, got {value!r}")
+    return value
+
+
+def declare_number(node: Node, name: str, default: float, description: str = "") -> float:
+    """Declare a floating-point parameter (``3`` is accepted as well as ``3.0``)."""
+    value = _declare(node, name, float(default), description, dynamic=True)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ParameterError(name, f"must be a number, got {value!r}")
+    value = float(value)
+    if value != value or value in (float("inf"), float("-inf")):
+        raise ParameterError(name, f"must be finite, got {value}")
+    return value
+
+
+def declare_int(
+    node: Node, name: str, default: int, description: str = "", minimum: int | None = None
+) -> int:
+    """Declare an integer parameter and return its value."""
+    value = _declare(node, name, int(default), description, dynamic=True)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ParameterError(name, f"must be an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ParameterError(name, f"must be >= {minimum}, got {value}")
+    return value
+
+
+def declare_string_array(node: Node, name: str, description: str = "") -> list[str]:
+    """Declare a string-array parameter (default empty) and return its value.
+
+    A single string is accepted as a one-element list (``-p overrides:=rate_hz=100``).
+    """
+    value = _declare(node, name, [""], description, dynamic=True)
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        raise ParameterError(name, f"must be a list of strings, got {value!r}")
+    return [v for v in value if v]
+
+
+def qos_from_parameters(node: Node) -> QoSProfile:
+    """Declare ``qos_reliability`` ('reliable' | 'best_effort') and ``qos_depth``; return the QoS.
+
+    History KEEP_LAST(depth), durability VOLATILE.
+    """
+    reliability = declare_string(
+        node, "qos_reliability", "reliable", "publisher reliability: reliable | best_effort"
+    )
+    if reliability not in RELIABILITY:
+        raise ParameterError(
+            "qos_reliability", f"must be one of: {', '.join(RELIABILITY)}; got {reliability!r}"
+        )
+    depth = declare_int(node, "qos_depth", 1000, "publisher history depth (KEEP_LAST)", minimum=1)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=RELIABILITY[reliability],
+        durability=DurabilityPolicy.VOLATILE,
+    )
+
+
+_MSGTYPE = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/msg/([A-Za-z][A-Za-z0-9_]*)$")
+
+
+def message_class(msgtype: str) -> type:
+    """The rclpy message class of ``'pkg/msg/Name'``, e.g. ``sensor_msgs.msg.Imu``."""
+    match = _MSGTYPE.match(msgtype)
+    if match is None:
+        raise ValueError(f"not a message type name of the form pkg/msg/Name: {msgtype!r}")
+    package, name = match.groups()
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"message type {msgtype} is not available: {exc}") from exc
+
+
+class Pacer:
+    """Maps stamps to wall-clock deadlines: stamp ``t`` is due at ``start + (t - t0) / rate``.
+
+    ``rate_factor <= 0`` means as fast as possible (everything is due at once). Waiting is done
+    by a caller-supplied ``spin(timeout_s)`` (which keeps rclpy responsive) until the deadline is
+    close, then by :func:`time.sleep` for the last stretch.
+    """
+
+    #: Below this many seconds before a deadline, stop spinning and sleep precisely.
+    FINE_S = 0.002
+
+    def __init__(self, rate_factor: float, t0_ns: int, start: float | None = None) -> None:
+        self.rate_factor = rate_factor
+        self.t0_ns = t0_ns
+        self.start = time.monotonic() if start is None else start
+        self.max_lateness_s = 0.0
+
+    def due(self, stamp_ns: int) -> float:
+        """Monotonic time at which ``stamp_ns`` is due."""
+        if self.rate_factor <= 0:
+            return self.start
+        return self.start + (stamp_ns - self.t0_ns) * 1e-9 / self.rate_factor
+
+    def wait(self, stamp_ns: int, spin) -> None:
+        """Return when ``stamp_ns`` is due; record the lateness (paced mode only)."""
+        if self.rate_factor <= 0:
+            return
+        deadline = self.due(stamp_ns)
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= self.FINE_S:
+                break
+            spin(min(remaining - self.FINE_S, 0.1))
+        while remaining > 0:
+            time.sleep(remaining)
+            remaining = deadline - time.monotonic()
+        self.max_lateness_s = max(self.max_lateness_s, -remaining)

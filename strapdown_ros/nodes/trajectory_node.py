@@ -1,0 +1,349 @@
+"""``trajectory_node``: publishes a scenario's reference stream live (SPEC §4, §6).
+
+It publishes exactly the messages ``strapdown-sim generate`` writes for the reference stream,
+in the same order: the very CDR payloads of
+:func:`strapdown_ros.dataset.reference_batch_chunks` (pieces of
+:func:`~strapdown_ros.dataset.reference_batches`), in
+:func:`~strapdown_ros.bag.batches.merge_order`, published raw. The message with stamp ``t`` is
+published at wall time ``start + (t - t0) / rate_factor``. Parameters and behaviour:
+docs/nodes.md.
+
+Exit status: 0 done (or stopped by SIGINT/SIGTERM), 1 failure while running (e.g. no
+subscriber within ``wait_timeout_s``), 2 invalid parameter or scenario.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import queue
+import threading
+import time
+import traceback
+from collections.abc import Callable, Iterator
+
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from strapdown_ros.bag.batches import Batch, merge_order
+from strapdown_ros.core.stream import Stream
+from strapdown_ros.dataset import reference_batch_chunks
+from strapdown_ros.nodes._common import (
+    EXIT_FAILURE,
+    EXIT_INVALID,
+    EXIT_OK,
+    Pacer,
+    ParameterError,
+    declare_bool,
+    declare_int,
+    declare_number,
+    declare_string,
+    declare_string_array,
+    message_class,
+    qos_from_parameters,
+)
+from strapdown_ros.reference import build_trajectory, output_cycles
+from strapdown_ros.scenario import ScenarioError, load_scenario
+
+NODE_NAME = "trajectory_node"
+TIME_SOURCES = ("sim", "wall")
+#: Topic parameters and the scenario's recording.topics key each defaults to.
+TOPIC_PARAMETERS = {
+    "imu_topic": "reference_imu",
+    "odom_topic": "reference_odom",
+    "fix_topic": "reference_fix",
+    "clock_topic": "clock",
+}
+MSGTYPES = {
+    "clock": "rosgraph_msgs/msg/Clock",
+    "reference_odom": "nav_msgs/msg/Odometry",
+    "reference_fix": "sensor_msgs/msg/NavSatFix",
+    "reference_imu": "sensor_msgs/msg/Imu",
+}
+#: Seconds to wait for the subscribers' acknowledgements when done, then the grace period.
+DRAIN_TIMEOUT_S = 10.0
+GRACE_S = 0.5
+#: Longest time without servicing rclpy (parameter services, ...) while publishing.
+SPIN_EVERY_S = 0.05
+
+
+class _Pieces:
+    """Computes the reference pieces in a background thread, at most ``depth`` ahead."""
+
+    _END = object()
+
+    def __init__(self, items: Iterator[tuple[Stream, list[Batch]]], depth: int = 2) -> None:
+        self._items = items
+        self._queue: queue.Queue[object] = queue.Queue(maxsize=depth)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="trajectory-pieces", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            for item in self._items:
+                while not self._stop.is_set():
+                    try:
+                        self._queue.put(item, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if self._stop.is_set():
+                    return
+            self._queue.put(self._END)
+        except BaseException as exc:  # re-raised by get()
+            self._queue.put(exc)
+
+    def get(self, spin: Callable[[float], None]) -> tuple[Stream, list[Batch]] | None:
+        """Next piece (``None`` at the end), spinning rclpy while it is being computed."""
+        while True:
+            try:
+                item = self._queue.get(timeout=0.01)
+                break
+            except queue.Empty:
+                spin(0.0)
+        if item is self._END:
+            return None
+        if isinstance(item, BaseException):
+            raise item
+        return item  # type: ignore[return-value]
+
+    def cancel(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+
+
+class TrajectoryNode(Node):
+    """Publishes the reference Imu / Odometry / NavSatFix (and /clock) of a scenario."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        path = declare_string(self, "scenario", "", "scenario YAML file (required)")
+        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
+        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
+        self.time_source = declare_string(self, "time_source", "sim", "sim | wall")
+        self.rate_factor = declare_number(
+            self, "rate_factor", 1.0, "speed-up over real time; <= 0: as fast as possible"
+        )
+        if not path:
+            raise ParameterError("scenario", "is required (the path of a scenario YAML file)")
+        if duration_s < 0:
+            raise ParameterError("duration_s", f"must be >= 0, got {duration_s}")
+        if self.time_source not in TIME_SOURCES:
+            raise ParameterError(
+                "time_source",
+                f"must be one of: {', '.join(TIME_SOURCES)}; got {self.time_source!r}",
+            )
+        scenario = load_scenario(path, overrides, duration_s if duration_s > 0 else None)
+        self.trajectory = build_trajectory(scenario)  # validates the trajectory's parameters
+        self.cycles = output_cycles(scenario, self.trajectory)
+
+        topics = dict(scenario.recording.topics)
+        for name, key in TOPIC_PARAMETERS.items():
+            topic = declare_string(
+                self, name, topics[key], f"topic (default recording.topics.{key})"
+            )
+            if not topic:
+                raise ParameterError(name, "must not be empty")
+            topics[key] = topic
+        self.qos = qos_from_parameters(self)
+        self.wait_for_subscribers = declare_int(
+            self, "wait_for_subscribers", 0, "subscriptions to wait for before publishing", 0
+        )
+        self.wait_for_all_topics = declare_bool(
+            self, "wait_for_all_topics", True, "wait on every published topic, not only the IMU"
+        )
+        self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
+        self.exit_when_done = declare_bool(self, "exit_when_done", True, "exit after the last")
+
+        # The /clock batch exists exactly in 'sim' mode, whatever recording.clock says.
+        recording = dataclasses.replace(
+            scenario.recording, topics=topics, clock=self.time_source == "sim"
+        )
+        self.scenario = dataclasses.replace(scenario, recording=recording)
+        self.imu_topic = topics["reference_imu"]
+        data_topics = [topics[k] for k in ("reference_odom", "reference_fix", "reference_imu")]
+        all_topics = ([topics["clock"]] if recording.clock else []) + data_topics
+        for topic in all_topics:
+            if all_topics.count(topic) > 1:
+                raise ParameterError(
+                    _parameter_of(topic, topics), f"topic {topic} is used twice: {all_topics}"
+                )
+
+        self._msgtypes = self._topic_types()
+        self._publishers_by_topic = {}
+        self.counts: dict[str, int] = {}
+        for topic, msgtype in self._msgtypes.items():
+            try:
+                self._publishers_by_topic[topic] = self.create_publisher(
+                    message_class(msgtype), topic, self.qos
+                )
+            except Exception as exc:  # invalid topic name
+                raise ParameterError(_parameter_of(topic, topics), str(exc)) from exc
+            self.counts[topic] = 0
+        self._wait_topics = all_topics if self.wait_for_all_topics else [self.imu_topic]
+
+        self.get_logger().info(
+            f"scenario {scenario.path} ({scenario.name}): {self.cycles} cycles at "
+            f"{scenario.rate_hz:g} Hz, {self.cycles / scenario.rate_hz:g} s; time_source "
+            f"{self.time_source}, rate_factor {self.rate_factor:g}; topics "
+            + ", ".join(p.topic_name for p in self._publishers_by_topic.values())
+        )
+
+    def _topic_types(self) -> dict[str, str]:
+        """Topic -> message type of what :func:`reference_batches` produces, in batch order."""
+        topics = self.scenario.recording.topics
+        out = {topics["clock"]: MSGTYPES["clock"]} if self.scenario.recording.clock else {}
+        for key in ("reference_odom", "reference_fix", "reference_imu"):
+            out[topics[key]] = MSGTYPES[key]
+        return out
+
+    # -----------------------------------------------------------------------------------------
+
+    def run(self, executor: SingleThreadedExecutor) -> int:
+        """Publish the whole stream; return the exit status."""
+        last_spin = [time.monotonic()]
+
+        def spin(timeout_s: float) -> None:
+            executor.spin_once(timeout_sec=timeout_s)
+            last_spin[0] = time.monotonic()
+
+        pieces = _Pieces(reference_batch_chunks(self.scenario, self.trajectory))
+        try:
+            if not self._wait_for_subscribers(spin):
+                return EXIT_FAILURE
+            pacer: Pacer | None = None
+            wall_start = time.monotonic()
+            t_first = t_last = 0
+            while (item := pieces.get(spin)) is not None:
+                _, batches = item
+                for b in batches:
+                    if self._msgtypes.get(b.topic) != b.msgtype:
+                        raise RuntimeError(f"unexpected batch {b.topic} ({b.msgtype})")
+                pubs = [self._publishers_by_topic[b.topic] for b in batches]
+                for k, i, stamp in merge_order(batches):
+                    if pacer is None:
+                        pacer = Pacer(self.rate_factor, stamp)
+                        wall_start, t_first = pacer.start, stamp
+                    pacer.wait(stamp, spin)
+                    if not self.context.ok():  # SIGINT / SIGTERM (rclpy's signal handlers)
+                        raise ExternalShutdownException()
+                    topic = batches[k].topic
+                    pubs[k].publish(batches[k].payloads[i])
+                    self.counts[topic] += 1
+                    t_last = stamp
+                    if time.monotonic() - last_spin[0] > SPIN_EVERY_S:
+                        spin(0.0)
+            elapsed = time.monotonic() - wall_start
+            self._log_summary(elapsed, (t_last - t_first) * 1e-9, pacer)
+            self._drain(spin)
+            if not self.exit_when_done:
+                self.get_logger().info("done; exit_when_done is false, spinning until shutdown")
+                while rclpy.ok(context=self.context):
+                    spin(1.0)
+            return EXIT_OK
+        finally:
+            pieces.cancel()
+
+    def _wait_for_subscribers(self, spin: Callable[[float], None]) -> bool:
+        wanted = self.wait_for_subscribers
+        if wanted <= 0:
+            return True
+        pubs = [self._publishers_by_topic[t] for t in self._wait_topics]
+        self.get_logger().info(
+            f"waiting for {wanted} subscription(s) on {', '.join(self._wait_topics)} "
+            f"(timeout {self.wait_timeout_s:g} s)"
+        )
+        deadline = time.monotonic() + self.wait_timeout_s
+        while True:
+            missing = [p for p in pubs if p.get_subscription_count() < wanted]
+            if not missing:
+                waited = time.monotonic() - deadline + self.wait_timeout_s
+                self.get_logger().info(f"subscriptions matched after {waited:.3f} s")
+                return True
+            if time.monotonic() > deadline:
+                self.get_logger().error(
+                    f"timeout after {self.wait_timeout_s:g} s waiting for {wanted} "
+                    "subscription(s) on "
+                    + ", ".join(
+                        f"{p.topic_name} (has {p.get_subscription_count()})" for p in missing
+                    )
+                )
+                return False
+            spin(0.02)
+
+    def _wait_acked(self, pub, timeout_s: float) -> bool:
+        """Wait (in short steps, so that a signal is noticed) until ``pub``'s data is acked."""
+        deadline = time.monotonic() + timeout_s
+        while rclpy.ok(context=self.context):
+            if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
+                return True
+            if time.monotonic() > deadline:
+                self.get_logger().warn(
+                    f"{pub.topic_name}: messages not acknowledged within {timeout_s:g} s",
+                    throttle_duration_sec=10.0,
+                )
+                return False
+        raise ExternalShutdownException()
+
+    def _drain(self, spin: Callable[[float], None]) -> None:
+        """Let the subscribers receive everything: acknowledgements, then a grace period."""
+        deadline = time.monotonic() + DRAIN_TIMEOUT_S
+        acked = [
+            self._wait_acked(pub, max(deadline - time.monotonic(), 0.1))
+            for pub in self._publishers_by_topic.values()
+        ]
+        if all(acked):
+            waited = time.monotonic() - deadline + DRAIN_TIMEOUT_S
+            self.get_logger().info(f"all messages acknowledged after {waited:.3f} s")
+        end = time.monotonic() + GRACE_S
+        while time.monotonic() < end:
+            spin(max(end - time.monotonic(), 0.0))
+
+    def _log_summary(self, elapsed: float, span: float, pacer: Pacer | None) -> None:
+        total = sum(self.counts.values())
+        lines = [
+            f"published {total} messages: {span:.3f} s of data in {elapsed:.3f} s of wall "
+            f"time ({span / max(elapsed, 1e-9):.2f}x real time)"
+        ]
+        if pacer is not None and self.rate_factor > 0:
+            lines.append(f"max lateness {pacer.max_lateness_s * 1e3:.3f} ms")
+        lines += [f"  {t}: {n}" for t, n in self.counts.items()]
+        self.get_logger().info("\n".join(lines))
+
+
+def _parameter_of(topic: str, topics: dict[str, str]) -> str:
+    for name, key in TOPIC_PARAMETERS.items():
+        if topics.get(key) == topic:
+            return name
+    return "imu_topic"
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node; return the exit status."""
+    rclpy.init(args=args)
+    logger = rclpy.logging.get_logger(NODE_NAME)
+    node: TrajectoryNode | None = None
+    try:
+        node = TrajectoryNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        return node.run(executor)
+    except ParameterError as exc:
+        logger.error(f"invalid parameter: {exc}")
+        return EXIT_INVALID
+    except ScenarioError as exc:
+        logger.error(f"invalid scenario: {exc}")
+        return EXIT_INVALID
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return EXIT_OK
+    except Exception as exc:
+        if not rclpy.ok():  # a signal shut the context down under a publish or a wait
+            return EXIT_OK
+        logger.error(f"failed: {exc}\n{traceback.format_exc()}")
+        return EXIT_FAILURE
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

@@ -1,0 +1,352 @@
+"""trajectory_node publishes exactly what ``strapdown-sim generate`` writes (SPEC §6).
+
+A bag is generated offline for 3 s of the default scenario (600 cycles at 200 Hz, with
+``recording.clock=true``). Then ``trajectory_node`` runs as its own process next to a raw
+subscriber process (test/ros_helpers/raw_recorder.py) in this session's ROS domain, and every
+received payload must be byte-identical to the bag's (up to Fast DDS' 4-byte alignment padding,
+see :func:`_padded`), in the same order per topic; the payloads are also decoded (the project's
+codec and rclpy's own deserializer) and compared bit for bit with the bag's fields. Parameter
+errors, the subscriber wait and signals are checked too. Every wait has a timeout and children
+still running at the end are killed.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
+
+from strapdown_ros.bag import cdr  # noqa: E402
+from strapdown_ros.bag.reader import read_bag  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
+DURATION_S = 3.0
+TOPICS = {
+    "/reference/imu": "sensor_msgs/msg/Imu",
+    "/reference/odom": "nav_msgs/msg/Odometry",
+    "/reference/fix": "sensor_msgs/msg/NavSatFix",
+    "/clock": "rosgraph_msgs/msg/Clock",
+}
+COUNTS = {"/reference/imu": 600, "/reference/odom": 601, "/reference/fix": 601, "/clock": 601}
+TIMEOUT_S = 60.0
+
+
+def _executable(name: str) -> str:
+    local = Path(sys.executable).parent / name
+    found = str(local) if local.exists() else shutil.which(name)
+    if not found:
+        pytest.skip(f"{name} is not installed (make setup)")
+    return found
+
+
+class Proc:
+    """A child process whose stdout/stderr go to files (no pipe can fill up)."""
+
+    def __init__(self, args: list[str], env: dict[str, str], log_dir: Path, name: str) -> None:
+        self.name = name
+        self.out_path = log_dir / f"{name}.out"
+        self.err_path = log_dir / f"{name}.err"
+        with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
+            self.proc = subprocess.Popen(
+                args, env=env, stdin=subprocess.DEVNULL, stdout=out, stderr=err, cwd=REPO
+            )
+
+    @property
+    def output(self) -> str:
+        return self.out_path.read_text() + self.err_path.read_text()
+
+    def wait_for(self, pattern: str, deadline: float) -> None:
+        """Block until the output matches ``pattern`` (regex); fail at ``deadline`` or exit."""
+        while not re.search(pattern, self.output):
+            if self.proc.poll() is not None and not re.search(pattern, self.output):
+                pytest.fail(f"{self.name} exited before {pattern!r}:\n{self.describe()}")
+            if time.monotonic() > deadline:
+                pytest.fail(f"timeout waiting for {pattern!r} from {self.name}:\n{self.describe()}")
+            time.sleep(0.05)
+
+    def wait(self, deadline: float) -> int:
+        try:
+            return self.proc.wait(timeout=max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"timeout waiting for {self.name} to exit:\n{self.describe()}")
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(timeout=10)
+
+    def describe(self) -> str:
+        return f"--- {self.name} (pid {self.proc.pid}, rc {self.proc.poll()})\n{self.output}"
+
+
+@pytest.fixture
+def procs():
+    """Children started by a test; killed at teardown if still running."""
+    children: list[Proc] = []
+    yield children
+    for child in children:
+        child.kill()
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    """The bag of ``strapdown-sim generate`` for the scenario the node runs (with /clock)."""
+    out = tmp_path_factory.mktemp("generate") / "bag"
+    cmd = [
+        _executable("strapdown-sim"),
+        "generate",
+        str(SCENARIO),
+        "--out",
+        str(out),
+        "--duration",
+        str(DURATION_S),
+        "--set",
+        "recording.clock=true",
+        "--quiet",
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    contents = read_bag(out, raw=True)
+    assert {t: len(d.payloads) for t, d in contents.topics.items()} == COUNTS
+    return contents
+
+
+def _node_args(*params: str) -> list[str]:
+    args = [_executable("trajectory_node"), "--ros-args"]
+    for p in params:
+        args += ["-p", p]
+    return args
+
+
+def _record_and_run(
+    procs: list[Proc], ros_env, tmp_path: Path, counts: dict[str, int], *params: str
+) -> tuple[dict, Proc]:
+    """Run the recorder and the node; return the recording and the node process."""
+    deadline = time.monotonic() + TIMEOUT_S
+    out = tmp_path / "recording.pkl"
+    rec_args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
+    for topic, msgtype in TOPICS.items():
+        rec_args += ["--topic", f"{topic}={msgtype}={counts[topic]}"]
+    recorder = Proc(rec_args, ros_env, tmp_path, "recorder")
+    procs.append(recorder)
+    node = Proc(_node_args(*params), ros_env, tmp_path, "trajectory_node")
+    procs.append(node)
+    node_rc = node.wait(deadline)
+    rec_rc = recorder.wait(deadline)
+    assert node_rc == 0, node.describe() + recorder.describe()
+    assert rec_rc == 0, recorder.describe() + node.describe()
+    assert "Traceback" not in node.output, node.describe()
+    with open(out, "rb") as f:
+        return pickle.load(f), node
+
+
+def _padded(payload: bytes) -> bytes:
+    """``payload`` as a subscriber in another process receives it from Fast DDS.
+
+    RTPS submessages are 4-byte aligned and the reader takes the serialized payload's length
+    from the submessage, so a payload whose length is not a multiple of 4 (NavSatFix: 133
+    bytes) arrives with 1-3 zero bytes appended, whoever published it (rclpy's own serializer
+    too). The CDR content is unchanged.
+    """
+    return bytes(payload) + bytes(-len(payload) % 4)
+
+
+def _bitwise_equal(a, b) -> bool:
+    """Field containers equal bit for bit (dtype, shape and bytes of every array)."""
+    if type(a) is not type(b):
+        return False
+    for f in fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, str) or isinstance(y, str):
+            if x != y:
+                return False
+            continue
+        x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)
+        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
+            return False
+    return True
+
+
+def _check_rclpy_decoding(topic: str, payloads: list[bytes], want) -> None:
+    """Decode with rclpy's own deserializer and compare key fields bit for bit with the bag."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu, NavSatFix
+
+    def stamp(s) -> int:
+        return s.sec * 1_000_000_000 + s.nanosec
+
+    def same(got: list, expected) -> None:
+        g = np.asarray(got, dtype=np.float64)
+        assert g.tobytes() == np.ascontiguousarray(expected, dtype=np.float64).tobytes(), topic
+
+    cls = {"/reference/imu": Imu, "/reference/odom": Odometry, "/reference/fix": NavSatFix}
+    msgs = [deserialize_message(p, cls.get(topic, Clock)) for p in payloads]
+    if topic == "/clock":
+        assert [stamp(m.clock) for m in msgs] == want.stamps_ns.tolist()
+        return
+    assert [stamp(m.header.stamp) for m in msgs] == want.stamps_ns.tolist()
+    assert {m.header.frame_id for m in msgs} == {want.frame_id}
+    if topic == "/reference/imu":
+        same([[m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z] for m in msgs],
+             want.angular_velocity)  # fmt: skip
+        a = [m.linear_acceleration for m in msgs]
+        same([[v.x, v.y, v.z] for v in a], want.linear_acceleration)
+        q = [m.orientation for m in msgs]
+        same([[v.x, v.y, v.z, v.w] for v in q], want.orientation)
+    elif topic == "/reference/odom":
+        p = [m.pose.pose.position for m in msgs]
+        same([[v.x, v.y, v.z] for v in p], want.position)
+        q = [m.pose.pose.orientation for m in msgs]
+        same([[v.x, v.y, v.z, v.w] for v in q], want.orientation)
+        t = [m.twist.twist.linear for m in msgs]
+        same([[v.x, v.y, v.z] for v in t], want.twist_linear)
+        assert {m.child_frame_id for m in msgs} == {want.child_frame_id}
+    else:
+        same([m.latitude for m in msgs], want.latitude)
+        same([m.longitude for m in msgs], want.longitude)
+        same([m.altitude for m in msgs], want.altitude)
+
+
+def _compare(recording: dict, bag, topics: list[str]) -> None:
+    for topic in topics:
+        got = recording["topics"][topic]
+        want = bag.topics[topic]
+        assert len(got) == len(want.payloads), topic
+        pairs = zip(got, want.payloads, strict=True)
+        first_bad = next((i for i, (g, w) in enumerate(pairs) if g != _padded(w)), None)
+        assert first_bad is None, f"{topic}: payload {first_bad} differs from the bag"
+        decoded = cdr.deserialize(want.msgtype, got)
+        assert _bitwise_equal(decoded, want.fields), topic
+        _check_rclpy_decoding(topic, got, want.fields)
+
+
+def test_publishes_exactly_the_generated_bag(bag, procs, ros_env, tmp_path):
+    """rate_factor 0, time_source sim: imu, odom, fix and /clock identical to the bag."""
+    recording, node = _record_and_run(
+        procs,
+        ros_env,
+        tmp_path,
+        COUNTS,
+        f"scenario:={SCENARIO}",
+        f"duration_s:={DURATION_S}",
+        "rate_factor:=0.0",
+        "wait_for_subscribers:=1",
+    )
+    _compare(recording, bag, list(TOPICS))
+    for topic, n in COUNTS.items():
+        assert f"{topic}: {n}" in node.output, node.describe()
+
+
+def test_paced_wall_time_run(bag, procs, ros_env, tmp_path):
+    """rate_factor 1, time_source wall: no /clock, data identical, published in real time."""
+    counts = dict(COUNTS, **{"/clock": 0})
+    recording, node = _record_and_run(
+        procs,
+        ros_env,
+        tmp_path,
+        counts,
+        f"scenario:={SCENARIO}",
+        "duration_s:=3",  # an integer is accepted for a double parameter
+        "rate_factor:=1.0",
+        "time_source:=wall",
+        "wait_for_subscribers:=1",
+    )
+    assert recording["topics"]["/clock"] == []
+    _compare(recording, bag, ["/reference/imu", "/reference/odom", "/reference/fix"])
+    # 600 IMU messages 5 ms apart: first to last arrival spans 2.995 s of wall time.
+    arrival = np.asarray(recording["arrival"]["/reference/imu"])
+    span = arrival[-1] - arrival[0]
+    assert 2.95 < span < 3.5, span
+    match = re.search(r"3\.000 s of data in (\d+\.\d+) s of wall time", node.output)
+    assert match and 2.99 < float(match.group(1)) < 3.5, node.describe()
+    assert re.search(r"max lateness \d+\.\d+ ms", node.output), node.describe()
+
+
+@pytest.mark.parametrize(
+    ("params", "expected"),
+    [
+        ([], r"parameter 'scenario': is required"),
+        (["scenario:=/nonexistent/scenario.yaml"], r"scenario file not found"),
+        (
+            [f"scenario:={SCENARIO}", "overrides:=['initial.latitude_deg=100']"],
+            r"invalid scenario: initial\.latitude_deg: must be <= 90",
+        ),
+        (
+            [f"scenario:={SCENARIO}", "overrides:=trajectory.segments.0.duration_s=-1"],
+            r"invalid scenario: trajectory\.segments\[0\]\.duration_s: must be > 0",
+        ),
+        ([f"scenario:={SCENARIO}", "duration_s:=601.0"], r"invalid scenario: duration_s: "),
+        ([f"scenario:={SCENARIO}", "time_source:=gps"], r"parameter 'time_source': must be one"),
+        ([f"scenario:={SCENARIO}", "qos_reliability:=x"], r"parameter 'qos_reliability'"),
+    ],
+    ids=["missing", "no-file", "bad-value", "bad-segment", "too-long", "time-source", "qos"],
+)
+def test_invalid_input_exits_2(params, expected, ros_env):
+    proc = subprocess.run(
+        _node_args(*params), env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
+    )
+    output = proc.stdout + proc.stderr
+    assert proc.returncode == 2, output
+    assert re.search(expected, output), output
+    assert "Traceback" not in output, output
+
+
+def test_no_subscriber_within_timeout_exits_1(ros_env):
+    topic = f"/strapdown_test/lonely_imu_{os.getpid()}"
+    params = [f"scenario:={SCENARIO}", "duration_s:=1.0", f"imu_topic:={topic}"]
+    params += [
+        f"odom_topic:={topic}_odom",
+        f"fix_topic:={topic}_fix",
+        f"clock_topic:={topic}_clock",
+        "wait_for_subscribers:=1",
+        "wait_timeout_s:=0.5",
+    ]
+    proc = subprocess.run(
+        _node_args(*params), env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
+    )
+    output = proc.stdout + proc.stderr
+    assert proc.returncode == 1, output
+    assert "timeout after 0.5 s waiting for 1 subscription(s)" in output, output
+    assert "Traceback" not in output, output
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_stops_cleanly(sig, procs, ros_env, tmp_path):
+    deadline = time.monotonic() + TIMEOUT_S
+    topic = f"/strapdown_test/signal_imu_{os.getpid()}"
+    node = Proc(
+        _node_args(
+            f"scenario:={SCENARIO}",
+            "duration_s:=60",
+            "rate_factor:=1",
+            f"imu_topic:={topic}",
+            f"odom_topic:={topic}_odom",
+            f"fix_topic:={topic}_fix",
+            f"clock_topic:={topic}_clock",
+        ),
+        ros_env,
+        tmp_path,
+        "trajectory_node",
+    )
+    procs.append(node)
+    node.wait_for(r"time_source sim, rate_factor 1", deadline)
+    time.sleep(0.5)  # publishing, paced
+    node.proc.send_signal(sig)
+    assert node.wait(time.monotonic() + 15) == 0, node.describe()
+    assert "Traceback" not in node.output, node.describe()
