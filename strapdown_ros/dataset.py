@@ -18,13 +18,21 @@ from pathlib import Path
 
 import numpy as np
 
+from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.trajectory.base import Trajectory
-from strapdown_ros.reference import build_trajectory, generate_reference_chunks, output_cycles
+from strapdown_ros.core.variation import OffsetArrays, generate_variation
+from strapdown_ros.messages import stream_from_messages
+from strapdown_ros.reference import (
+    CHUNK_CYCLES,
+    build_trajectory,
+    generate_reference_chunks,
+    output_cycles,
+)
 from strapdown_ros.scenario import Scenario
 
 __all__ = [
@@ -109,6 +117,88 @@ def _drop_up_to(b: Batch, stamp_ns: int) -> Batch:
     if keep == 0:
         return b
     return Batch(b.topic, b.msgtype, b.stamps_ns[keep:], b.payloads[keep:])
+
+
+def decode_reference(scenario: Scenario, batches: list[Batch]) -> Stream:
+    """The reference stream as a subscriber sees it: decoded from its Imu and Odometry payloads.
+
+    The variation is computed from this (not from the generator's arrays) so that the offline
+    path and ``variation_node``, which only has the messages, compute on identical numbers.
+    """
+    rec = scenario.recording
+    by_topic = {b.topic: b for b in batches}
+    imu = by_topic[rec.topics["reference_imu"]]
+    odom = by_topic[rec.topics["reference_odom"]]
+    return stream_from_messages(
+        cdr.deserialize(imu.msgtype, imu.payloads),  # type: ignore[arg-type]
+        cdr.deserialize(odom.msgtype, odom.payloads),  # type: ignore[arg-type]
+        scenario.gravity_model,
+        e0_epoch_ns=scenario.start_time_ns,
+    )
+
+
+def variation_settings(scenario: Scenario) -> tuple[int, str]:
+    """``variation.method`` (default 2) and ``variation.gravity`` (default ``full``)."""
+    cfg = scenario.variation or {}
+    return int(cfg.get("method", 2)), str(cfg.get("gravity", "full"))
+
+
+def scenario_offsets(scenario: Scenario, samples: int) -> OffsetArrays:
+    """Offsets of the scenario's ``variation`` section on the output cycle grid m = 0..N-1."""
+    from strapdown_ros.core.offsets import offset_history
+
+    history = offset_history(scenario.variation or {}, scenario.period_ns * 1e-9, samples - 1)
+    return OffsetArrays(history.lever_arm, history.displacement, history.c_bvar_bref)
+
+
+def variation_streams(scenario: Scenario, reference: Stream) -> tuple[Stream, Stream]:
+    """The variation and the regenerated reference (zero offsets, same routines) of a scenario."""
+    method, gravity = variation_settings(scenario)
+    samples = reference.cycles + 1
+    variation = generate_variation(reference, scenario_offsets(scenario, samples), method, gravity)
+    regenerated = generate_variation(reference, OffsetArrays.zero(samples), method, gravity)
+    return variation, regenerated
+
+
+def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream) -> list[Batch]:
+    """Serialized ``/variation/*`` and ``/variation/reference/*`` batches."""
+    rec = scenario.recording
+    frame = rec.frames["variation_imu"]
+    batches = stream_batches(
+        variation,
+        imu_topic=rec.topics["variation_imu"],
+        odom_topic=rec.topics["variation_odom"],
+        fix_topic=rec.topics["variation_fix"],
+        body_frame=frame,
+        earth_frame=rec.frames["earth"],
+    )
+    batches += stream_batches(
+        regenerated,
+        imu_topic=rec.topics["variation_reference_imu"],
+        odom_topic=rec.topics["variation_reference_odom"],
+        fix_topic=None,
+        body_frame=rec.frames["reference_imu"],
+        earth_frame=rec.frames["earth"],
+    )
+    return batches
+
+
+def _time_windows(batches: list[Batch], window_ns: int) -> Iterator[list[Batch]]:
+    """Split batches into consecutive stamp windows (each window written merged, in order)."""
+    if not batches:
+        return
+    t_min = min(int(b.stamps_ns[0]) for b in batches if len(b.stamps_ns))
+    t_max = max(int(b.stamps_ns[-1]) for b in batches if len(b.stamps_ns))
+    edge = t_min
+    while edge <= t_max:
+        stop = edge + window_ns
+        window = []
+        for b in batches:
+            i0 = int(np.searchsorted(b.stamps_ns, edge, side="left"))
+            i1 = int(np.searchsorted(b.stamps_ns, stop, side="left"))
+            window.append(Batch(b.topic, b.msgtype, b.stamps_ns[i0:i1], b.payloads[i0:i1]))
+        yield window
+        edge = stop
 
 
 _END = "end"
@@ -200,17 +290,55 @@ def generate_dataset(
     )
     residuals: list[Residuals] = []
 
-    def pieces() -> Iterator[tuple[int, Residuals, list[Batch]]]:
+    def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
+        if scenario.variation is None:
+            for piece, batches in reference_batch_chunks(scenario, trajectory):
+                yield piece.cycles, {"reference": stream_residuals(piece)}, batches
+            return
+        # With a variation: the whole reference first (the variation looks ahead and is computed
+        # from the decoded messages), then everything in stamp windows.
+        all_batches: list[list[Batch]] = []
+        parts: list[Residuals] = []
         for piece, batches in reference_batch_chunks(scenario, trajectory):
-            yield piece.cycles, stream_residuals(piece), batches
+            all_batches.append(batches)
+            parts.append(stream_residuals(piece))
+        merged = [
+            Batch(
+                group[0].topic,
+                group[0].msgtype,
+                np.concatenate([b.stamps_ns for b in group]),
+                [p for b in group for p in b.payloads],
+            )
+            for group in zip(*all_batches, strict=True)
+        ]
+        reference = decode_reference(scenario, merged)
+        variation, regenerated = variation_streams(scenario, reference)
+        merged += variation_batches(scenario, variation, regenerated)
+        residuals = {
+            "reference": merge_residuals(parts),
+            "variation": stream_residuals(variation),
+            "variation/reference": stream_residuals(regenerated),
+        }
+        window = CHUNK_CYCLES * scenario.period_ns
+        first = True
+        done = 0
+        for batch_window in _time_windows(merged, window):
+            cycles = min(CHUNK_CYCLES, total - done)
+            done += cycles
+            yield cycles, residuals if first else {}, batch_window
+            first = False
 
     producer = _Producer(pieces())
     done = 0
+    others: dict[str, Residuals] = {}
     try:
         with BagWriter(out, storage=storage, force=force) as writer:
             for cycles, res, batches in producer:  # type: ignore[misc]
                 writer.write_batches(batches)
-                residuals.append(res)
+                if "reference" in res and len(res) == 1:
+                    residuals.append(res["reference"])
+                else:
+                    others.update(res)
                 done += cycles
                 if progress is not None:
                     progress("generating", done, total)
@@ -218,6 +346,7 @@ def generate_dataset(
     finally:
         producer.close()
     summary.residuals["reference"] = merge_residuals(residuals)
+    summary.residuals.update(others)
     summary.elapsed_s = time.perf_counter() - start
     return summary
 

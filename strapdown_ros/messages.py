@@ -54,6 +54,7 @@ from strapdown_ros.core.rotations import (
     dcm_to_flu_enu,
     flu_to_frd,
     frd_to_flu,
+    quat_from_dcm,
 )
 from strapdown_ros.core.stream import Stream
 
@@ -248,31 +249,10 @@ def stamps_to_sec_nanosec(stamps_ns: ArrayLike) -> tuple[NDArray[np.int32], NDAr
 def quat_ros_from_dcm(c: ArrayLike) -> F64:
     """ROS quaternion ``(x, y, z, w)``, ``w >= 0``, of a DCM ``C_A^B`` (frame A relative to B).
 
-    Bit for bit :func:`~strapdown_ros.core.rotations.quat_from_dcm` (Shepperd, largest pivot)
-    reordered, computed without the (..., 4, 4) candidate matrix: the same element-wise
-    expressions, only the pivot's row selected, normalized by the same call.
+    :func:`~strapdown_ros.core.rotations.quat_from_dcm` (Shepperd, largest pivot) reordered.
     """
-    c = np.asarray(c, dtype=np.float64)
-    if c.shape[-2:] != (3, 3):
-        raise ValueError(f"expected an array of 3x3 matrices (..., 3, 3), got shape {c.shape}")
-    c00, c01, c02 = c[..., 0, 0], c[..., 0, 1], c[..., 0, 2]
-    c10, c11, c12 = c[..., 1, 0], c[..., 1, 1], c[..., 1, 2]
-    c20, c21, c22 = c[..., 2, 0], c[..., 2, 1], c[..., 2, 2]
-    tr = np.trace(c, axis1=-2, axis2=-1)
-    pivot = np.argmax(np.stack([tr, c00, c11, c22], axis=-1), axis=-1)
-    d01, d02, d03 = c21 - c12, c02 - c20, c10 - c01
-    s12, s13, s23 = c10 + c01, c02 + c20, c21 + c12
-    q = np.empty(c.shape[:-2] + (4,))  # w, x, y, z (C order, as quat_from_dcm's)
-    np.choose(pivot, [1 + tr, d01, d02, d03], out=q[..., 0])
-    np.choose(pivot, [d01, 1 + 2 * c00 - tr, s12, s13], out=q[..., 1])
-    np.choose(pivot, [d02, s12, 1 + 2 * c11 - tr, s23], out=q[..., 2])
-    np.choose(pivot, [d03, s13, s23, 1 + 2 * c22 - tr], out=q[..., 3])
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)  # as quat_normalize
-    out = np.empty_like(q)
-    out[..., :3] = q[..., 1:]
-    out[..., 3] = q[..., 0]
-    np.negative(out, out=out, where=q[..., :1] < 0.0)  # canonical sign w >= 0
-    return out
+    q = quat_from_dcm(c)
+    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
 
 
 def dcm_from_quat_ros(q_xyzw: ArrayLike) -> F64:
@@ -774,12 +754,19 @@ def navsatfix_geodetic(fix: NavSatFixFields) -> tuple[I64, F64, F64, F64]:
     )
 
 
-def stream_from_messages(imu: ImuFields, odom: OdometryFields, gravity_model: str = "j2") -> Stream:
+def stream_from_messages(
+    imu: ImuFields,
+    odom: OdometryFields,
+    gravity_model: str = "j2",
+    e0_epoch_ns: int | None = None,
+) -> Stream:
     """Rebuild a :class:`Stream` (E0 truth, FRD increments) from its Imu and Odometry messages.
 
     The first Odometry message is cycle 0 (``t0``); Imu message m must be stamped like Odometry
     message m (m = 1..M). Used to check the exactness rule (SPEC §3) on a written bag; the E → E0
     and quaternion round trips cost ~1e-9 m and ~1e-16 rad, far below the rule's tolerances.
+    ``e0_epoch_ns``: the instant E0 coincides with ECEF (default: the first Odometry stamp);
+    a window of a longer stream passes the stream's start so E0 stays the same frame.
     """
     t_odom = _stamps(odom.stamps_ns)
     t_imu = _stamps(imu.stamps_ns)
@@ -791,10 +778,12 @@ def stream_from_messages(imu: ImuFields, odom: OdometryFields, gravity_model: st
         raise ValueError("need at least one Imu message to rebuild a stream")
     inc = imu_increments(imu, period)
     st = odometry_state(odom)
-    t = (t_odom - t_odom[0]) * 1e-9
+    epoch = int(t_odom[0]) if e0_epoch_ns is None else int(e0_epoch_ns)
+    t = (t_odom - epoch) * 1e-9
     r0, v0, c0 = ecef_state_to_e0(t, st.r_e, st.v_e, st.c_b_e)
     assert c0 is not None
     return Stream(
+        e0_epoch_ns=epoch,
         t0_ns=int(t_odom[0]),
         period_ns=period,
         dalpha=inc.dalpha,

@@ -68,15 +68,14 @@ def attitude_increments(c_b_e0: ArrayLike) -> Array:
 
 def _inv3(m: Array) -> Array:
     """Inverses of an array of 3x3 matrices by the adjugate (fast for well-conditioned ones)."""
-    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
-    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
-    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    co = np.empty_like(m)
-    co[..., 0, 0], co[..., 0, 1], co[..., 0, 2] = e * i - f * h, c * h - b * i, b * f - c * e
-    co[..., 1, 0], co[..., 1, 1], co[..., 1, 2] = f * g - d * i, a * i - c * g, c * d - a * f
-    co[..., 2, 0], co[..., 2, 1], co[..., 2, 2] = d * h - e * g, b * g - a * h, a * e - b * d
-    det = a * co[..., 0, 0] + b * co[..., 1, 0] + c * co[..., 2, 0]
-    return co / det[..., None, None]
+    # Work on contiguous rows (one per matrix element) rather than strided views.
+    a, b, c, d, e, f, g, h, i = np.ascontiguousarray(m.reshape(-1, 9).T)
+    co = np.empty((9, a.shape[0]))
+    co[0], co[1], co[2] = e * i - f * h, c * h - b * i, b * f - c * e
+    co[3], co[4], co[5] = f * g - d * i, a * i - c * g, c * d - a * f
+    co[6], co[7], co[8] = d * h - e * g, b * g - a * h, a * e - b * d
+    co /= a * co[0] + b * co[3] + c * co[6]
+    return np.ascontiguousarray(co.T).reshape(m.shape)
 
 
 class PairSystem:
@@ -129,17 +128,12 @@ class PairSystem:
         self.b_inv_odd = _inv3((cgrv1 - a_odd @ self.cgv1) * t)
         self.b_inv_even = _inv3((cgr2 - a_even @ cgv2) * t)
 
-        def numerator_without_g_prev1(a: Array) -> Array:
-            return (
-                dr
-                - _mv(a, dvel) * t
-                + (_mv(a / 2.0 - eye / 6.0, g_cur) + _mv(a / 2.0 - 5.0 * eye / 6.0, g_prev2))
-                * t
-                * t
-            )
-
-        self.num_odd = numerator_without_g_prev1(a_odd)
-        self.num_even = numerator_without_g_prev1(a_even)
+        # B_num of eqs. (26), (29) regrouped:  dr - A dV T + [(A/2 - I/6) g_2n + (A - I) g_2n-1
+        #   + (A/2 - 5I/6) g_2n-2] T²  =  base + A w + (A - I) g_2n-1 T²
+        base = dr - (g_cur + 5.0 * g_prev2) * (t * t / 6.0)
+        w = -dvel * t + 0.5 * (g_cur + g_prev2) * (t * t)
+        self.num_odd = base + _mv(a_odd, w)
+        self.num_even = base + _mv(a_even, w)
         self.k_odd = (a_odd - eye) * (t * t)  # coefficient of g_{2n-1} in B_num
         self.k_even = (a_even - eye) * (t * t)
 
@@ -246,7 +240,7 @@ def method2(
     v_e0: ArrayLike,
     period: float,
     gravity: GravityFn,
-    iterations: int = 3,
+    iterations: int = 2,
     displacement: ArrayLike | None = None,
     cycle_gravity: Callable[[Array, Array], Array] | None = None,
 ) -> Method2Solution:

@@ -199,30 +199,25 @@ def dcm_from_quat(q: ArrayLike) -> NDArray[np.float64]:
 def quat_from_dcm(c: ArrayLike) -> NDArray[np.float64]:
     """Quaternion of a DCM by Shepperd's method (largest pivot), canonical sign ``w >= 0``.
 
-    Accurate to a few ε at every angle including 180°, where the trace method fails.
+    Accurate to a few ε at every angle including 180°, where the trace method fails. The four
+    products ``4 q_i q_j`` of the pivot's row are selected element-wise (no 4x4 table).
     """
     c = _mat(c)
-    tr = np.trace(c, axis1=-2, axis2=-1)
-    diag = np.stack([tr, c[..., 0, 0], c[..., 1, 1], c[..., 2, 2]], axis=-1)
-    pivot = np.argmax(diag, axis=-1)
-    # 4 q_i q_j products from the matrix, one row per pivot choice (w, x, y, z).
-    d01 = c[..., 2, 1] - c[..., 1, 2]
-    d02 = c[..., 0, 2] - c[..., 2, 0]
-    d03 = c[..., 1, 0] - c[..., 0, 1]
-    s12 = c[..., 1, 0] + c[..., 0, 1]
-    s13 = c[..., 0, 2] + c[..., 2, 0]
-    s23 = c[..., 2, 1] + c[..., 1, 2]
-    rows = np.stack(
-        [
-            np.stack([1 + tr, d01, d02, d03], axis=-1),
-            np.stack([d01, 1 + 2 * c[..., 0, 0] - tr, s12, s13], axis=-1),
-            np.stack([d02, s12, 1 + 2 * c[..., 1, 1] - tr, s23], axis=-1),
-            np.stack([d03, s13, s23, 1 + 2 * c[..., 2, 2] - tr], axis=-1),
-        ],
-        axis=-2,
-    )
-    q = np.take_along_axis(rows, pivot[..., None, None], axis=-2)[..., 0, :]
-    return quat_normalize(q)
+    c00, c01, c02 = c[..., 0, 0], c[..., 0, 1], c[..., 0, 2]
+    c10, c11, c12 = c[..., 1, 0], c[..., 1, 1], c[..., 1, 2]
+    c20, c21, c22 = c[..., 2, 0], c[..., 2, 1], c[..., 2, 2]
+    tr = c00 + c11 + c22
+    pivot = np.argmax(np.stack([tr, c00, c11, c22], axis=-1), axis=-1)
+    d01, d02, d03 = c21 - c12, c02 - c20, c10 - c01
+    s12, s13, s23 = c10 + c01, c02 + c20, c21 + c12
+    q = np.empty(c.shape[:-2] + (4,))
+    np.choose(pivot, [1 + tr, d01, d02, d03], out=q[..., 0])
+    np.choose(pivot, [d01, 1 + 2 * c00 - tr, s12, s13], out=q[..., 1])
+    np.choose(pivot, [d02, s12, 1 + 2 * c11 - tr, s23], out=q[..., 2])
+    np.choose(pivot, [d03, s13, s23, 1 + 2 * c22 - tr], out=q[..., 3])
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    np.negative(q, out=q, where=q[..., :1] < 0.0)
+    return q
 
 
 def rotvec_from_quat(q: ArrayLike) -> NDArray[np.float64]:

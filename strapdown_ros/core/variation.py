@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from strapdown_ros.core.exact_update import g_matrices
 from strapdown_ros.core.gravity import gravitation, gravitation_first_order
 from strapdown_ros.core.method2 import attitude_increments, method2
+from strapdown_ros.core.series import rotation_coefficients
 from strapdown_ros.core.stream import Stream
 
 __all__ = [
@@ -147,12 +148,20 @@ def reference_pair_displacement(reference: Stream, g: Array, pairs: int) -> Arra
     """
     t = reference.period
     n = 2 * pairs
-    _, _, gr = g_matrices(reference.dalpha[:n])
-    c = reference.c_b_e0[:n]
-    v = reference.v_e0[:n]
+    da, dv = reference.dalpha[:n], reference.dv[:n]
+    x2 = np.einsum("ni,ni->n", da, da)
+    _, _, f3, f4 = (c[:, None] for c in rotation_coefficients(np.sqrt(x2)))
+    a_x_dv = np.cross(da, dv)
+    gr_dv = (
+        0.5 * dv
+        + f3 * a_x_dv
+        + f4 * (da * np.einsum("ni,ni->n", da, dv)[:, None] - x2[:, None] * dv)
+    )
     step = (
-        v * t + _mv(c, _mv(gr, reference.dv[:n])) * t + (g[1 : n + 1] + 2.0 * g[:n]) * (t * t / 6.0)
-    )  # eq. (4) without R_{m-1}, cycles 1..2*pairs
+        reference.v_e0[:n] * t
+        + _mv(reference.c_b_e0[:n], gr_dv) * t
+        + (g[1 : n + 1] + 2.0 * g[:n]) * (t * t / 6.0)
+    )  # eq. (4) without R_{m-1}, cycles 1..2*pairs; G_R Δv via cross products
     return step[0::2] + step[1::2]
 
 
