@@ -3,12 +3,14 @@
 * ``total``: :func:`strapdown_ros.dataset.generate_dataset` end to end (validation, trajectory,
   Method 2 regeneration, messages, serialization, bag writing), best of ``--repeats``;
 * ``floor``: :class:`strapdown_ros.bag.writer.BagWriter` alone writing the very same,
-  already serialized payloads (the unavoidable cost of a bag), best of ``--repeats``.
+  already serialized payloads (read back from the generated bag, every topic), best of
+  ``--repeats``.
 
 Prints the real-time factor (scenario duration / total) and ``total / floor``; the target is
 total <= 1.5 x floor (generation and serialization nearly free next to the write).
 
-Usage: python bench/bench_generate.py [SCENARIO] [--storage mcap] [--repeats 3]
+Usage: python bench/bench_generate.py [SCENARIO] [--storage mcap] [--repeats 3] [--set k=v]
+(``--set variation=null`` times the reference streams alone.)
 Last line: ``generate_vs_floor: X x``.
 """
 
@@ -20,9 +22,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.bag.writer import BagWriter
-from strapdown_ros.dataset import generate_dataset, reference_batches
-from strapdown_ros.reference import generate_reference
+from strapdown_ros.dataset import generate_dataset
 from strapdown_ros.scenario import load_scenario
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
@@ -33,12 +36,18 @@ def main() -> None:
     parser.add_argument("scenario", nargs="?", default=str(DEFAULT))
     parser.add_argument("--storage", default="mcap", choices=("mcap", "sqlite3"))
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
     args = parser.parse_args()
-    scenario = load_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, args.overrides)
     tmp = Path(tempfile.mkdtemp(prefix="bench_generate_"))
     try:
-        # the floor's input: the same payloads, serialized beforehand (not timed)
-        batches = reference_batches(scenario, generate_reference(scenario))
+        # the floor's input: the same payloads, read back from a generated bag (not timed)
+        generate_dataset(scenario, tmp / "input", storage=args.storage)
+        contents = read_bag(tmp / "input", raw=True)
+        batches = [
+            Batch(d.topic, d.msgtype, d.log_time_ns, d.payloads) for d in contents.topics.values()
+        ]
+        shutil.rmtree(tmp / "input")
         n_msgs = sum(len(b.payloads) for b in batches)
         t_total = t_floor = float("inf")
         summary = None

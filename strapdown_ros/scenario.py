@@ -405,6 +405,15 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
             raise ScenarioError(key, f"must be a mapping, got {type(value).__name__}")
         return dict(value)
 
+    variation = section("variation")
+    if variation is not None:
+        from strapdown_ros.core.offsets import validate_offsets
+
+        try:
+            validate_offsets(variation)
+        except ValueError as exc:
+            head, sep, rest = str(exc).partition(": ")
+            raise ScenarioError(head if sep else "variation", rest if sep else str(exc)) from None
     return Scenario(
         path=path,
         name=name,
@@ -415,7 +424,7 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
         gravity_model=gravity,
         initial=initial,
         trajectory=trajectory,
-        variation=section("variation"),
+        variation=variation,
         navigator=section("navigator"),
         imu_errors=section("imu_errors"),
         recording=_parse_recording(doc.get("recording")),

@@ -156,7 +156,14 @@ def test_default_scenario_reintegration_drift_below_1e4_m(tmp_path):
         "/reference/imu": 120_000,
         "/reference/odom": 120_001,
         "/reference/fix": 120_001,
+        # the variation ends at the last even cycle with eq. (10)'s look-ahead sample
+        "/variation/imu": 119_998,
+        "/variation/odom": 119_999,
+        "/variation/fix": 119_999,
+        "/variation/reference/imu": 119_998,
+        "/variation/reference/odom": 119_999,
     }
+    assert all(r.within_spec() for r in summary.residuals.values())
     stream = bag_stream(out)
     res = stream_residuals(stream)
     assert res.within_spec(), (res.max_attitude, res.max_velocity, res.max_position)
@@ -263,3 +270,60 @@ def test_pieces_give_the_same_messages_as_one_stream(monkeypatch):
         stamps = np.concatenate([batches[k].stamps_ns for _, batches in pieces])
         assert [bytes(p) for p in joined] == [bytes(p) for p in b.payloads], b.topic
         np.testing.assert_array_equal(stamps, b.stamps_ns)
+
+
+VARIATIONS = {
+    "constant": {"lever_arm_m": [2.0, -1.0, 0.5], "mounting_rph_deg": [1.0, -2.0, 30.0]},
+    "bending": {
+        "lever_arm_m": [-6.0, 8.0, -0.3],
+        "bending": {
+            "sinusoids": [{"amplitude_m": [0.0, 0.0, 0.03], "frequency_hz": 2.5}],
+            "random": {"sigma_m": [0.002, 0.002, 0.005], "bandwidth_hz": 4.0, "seed": 3},
+        },
+    },
+    "scanning": {
+        "lever_arm_m": [0.5, 0.0, -1.0],
+        "displacement_m": [0.0, 0.0, 0.2],
+        "scan": {"kind": "raster", "amplitude_deg": 25, "rate_dps": 30,
+                 "elevation_step_deg": 5, "rows": 3},
+    },
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("kind", sorted(VARIATIONS))
+def test_variation_streams_read_back_obey_exactness_and_constraints(tmp_path, kind):
+    from strapdown_ros.core.offsets import offset_history
+    from strapdown_ros.core.rotations import rotation_angle
+    from strapdown_ros.core.variation import OffsetArrays, variation_constraints
+
+    doc = {**SCENARIOS["segments"], "variation": VARIATIONS[kind]}
+    path = write_scenario(tmp_path, kind, doc)
+    out = tmp_path / "bag"
+    proc = run_cli("generate", str(path), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    reference = bag_stream(out)
+    variation = bag_stream(out, "/variation")
+    regenerated = bag_stream(out, "/variation/reference")
+    for stream in (variation, regenerated):
+        res = stream_residuals(stream)
+        assert res.within_spec(), (kind, res.max_attitude, res.max_velocity, res.max_position)
+    assert variation.cycles == reference.cycles - 2
+    # constraints (5) every cycle, (6)-(7) and (10) at even cycles, from what the bag holds
+    h = offset_history(VARIATIONS[kind], reference.period, reference.cycles)
+    con = variation_constraints(
+        reference, OffsetArrays(h.lever_arm, h.displacement, h.c_bvar_bref), variation.cycles
+    )
+    att = rotation_angle(np.swapaxes(variation.c_b_e0, -1, -2) @ con.c_b_e0)
+    assert np.max(att) <= 1e-12
+    assert np.max(np.abs(variation.r_e0[0::2] - con.r_e0[0::2])) <= 1e-8
+    assert np.max(np.abs(variation.v_e0[0::2] - con.v_e0[0::2])) <= 1e-9
+    assert np.min(np.linalg.norm(con.s_e0, axis=1)) > 0.5  # really displaced
+
+
+def test_bad_variation_key_is_rejected_before_work(tmp_path):
+    doc = {**SCENARIOS["segments"], "variation": {"lever_arm_m": [1, 0, 0], "scan": {
+        "kind": "sweep", "amplitude_deg": 10, "rate_dps": -5}}}  # fmt: skip
+    path = write_scenario(tmp_path, "bad", doc)
+    proc = run_cli("generate", str(path), "--out", str(tmp_path / "o"))
+    assert proc.returncode == 2 and "variation.scan.rate_dps" in proc.stderr, proc.stderr
+    assert not (tmp_path / "o").exists()

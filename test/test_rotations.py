@@ -52,7 +52,7 @@ def test_dcm_from_rotvec_matches_scipy_and_mpmath():
         )
         got = rot.dcm_from_rotvec(p)
         err = max(abs(float(ref[i, j]) - got[i, j]) for i in range(3) for j in range(3))
-        assert err < 6e-16  # <= 3 ulp of elements of size <= 1
+        assert err < 8e-16  # <= 4 ulp of elements of size <= 1 (angles beyond pi are wrapped)
 
 
 def test_rotvec_round_trip_at_edge_angles():

@@ -142,6 +142,11 @@ def dcm_from_rotvec(phi: ArrayLike) -> NDArray[np.float64]:
     """
     phi = _vec(phi)
     angle = np.linalg.norm(phi, axis=-1)
+    turns = np.round(angle / (2.0 * np.pi))
+    if np.any(turns):  # same rotation with the angle in [-π, π]: better conditioned
+        scale = 1.0 - 2.0 * np.pi * turns / np.where(turns > 0, angle, 1.0)
+        phi = phi * scale[..., None]
+        angle = np.abs(angle * scale)
     k, k2 = _skew_terms(phi)
     return np.eye(3) + f1(angle)[..., None, None] * k + f2(angle)[..., None, None] * k2
 
