@@ -116,6 +116,8 @@ def bag(tmp_path_factory):
         str(DURATION_S),
         "--set",
         "recording.clock=true",
+        "--set",
+        "variation=null",  # the reference streams only: what trajectory_node publishes
         "--quiet",
     ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
