@@ -26,9 +26,8 @@ from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.trajectory.base import Trajectory
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
-from strapdown_ros.messages import stream_from_messages
+from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
 from strapdown_ros.reference import (
-    CHUNK_CYCLES,
     build_trajectory,
     generate_reference_chunks,
     output_cycles,
@@ -183,24 +182,6 @@ def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream
     return batches
 
 
-def _time_windows(batches: list[Batch], window_ns: int) -> Iterator[list[Batch]]:
-    """Split batches into consecutive stamp windows (each window written merged, in order)."""
-    if not batches:
-        return
-    t_min = min(int(b.stamps_ns[0]) for b in batches if len(b.stamps_ns))
-    t_max = max(int(b.stamps_ns[-1]) for b in batches if len(b.stamps_ns))
-    edge = t_min
-    while edge <= t_max:
-        stop = edge + window_ns
-        window = []
-        for b in batches:
-            i0 = int(np.searchsorted(b.stamps_ns, edge, side="left"))
-            i1 = int(np.searchsorted(b.stamps_ns, stop, side="left"))
-            window.append(Batch(b.topic, b.msgtype, b.stamps_ns[i0:i1], b.payloads[i0:i1]))
-        yield window
-        edge = stop
-
-
 _END = "end"
 
 
@@ -258,6 +239,64 @@ class _Producer:
         self._queue.close()
 
 
+class _VariationStreamer:
+    """Variation and regenerated reference computed piece by piece as the reference arrives.
+
+    Works on the decoded reference messages (like ``variation_node``) and on windows that start
+    one cycle before the last emitted even cycle (``lead=1``): the windows give bit-identical
+    results to one vectorized run over the whole stream (Method 2 pairs are independent).
+    """
+
+    def __init__(self, scenario: Scenario, total: int) -> None:
+        self.scenario = scenario
+        self.method, self.gravity = variation_settings(scenario)
+        self.offsets = scenario_offsets(scenario, total + 1)
+        self.zero = OffsetArrays.zero(total + 1)
+        self.imu: ImuFields | None = None
+        self.odom: OdometryFields | None = None
+        self.emitted = -1  # last variation cycle published (even), -1: none yet
+        rec = scenario.recording
+        self.imu_topic = rec.topics["reference_imu"]
+        self.odom_topic = rec.topics["reference_odom"]
+
+    def feed(self, batches: list[Batch], res: dict[str, Residuals]) -> list[Batch]:
+        """Take one reference piece's batches; return the variation batches now computable."""
+        by_topic = {b.topic: b for b in batches}
+        imu_b, odom_b = by_topic[self.imu_topic], by_topic[self.odom_topic]
+        imu = cdr.deserialize(imu_b.msgtype, imu_b.payloads)
+        odom = cdr.deserialize(odom_b.msgtype, odom_b.payloads)
+        self.imu = imu if self.imu is None else self.imu.append(imu)  # type: ignore[union-attr]
+        self.odom = odom if self.odom is None else self.odom.append(odom)  # type: ignore[union-attr]
+        avail = len(self.odom) - 1  # reference cycles 0..avail
+        last = (avail - 1) - (avail - 1) % 2  # last even cycle with its look-ahead sample
+        if last < 2 or last <= self.emitted:
+            return []
+        lead = 0 if self.emitted < 0 else 1
+        a = 0 if lead == 0 else self.emitted - 1
+        window = stream_from_messages(
+            self.imu.rows(a, last + 1),  # type: ignore[union-attr]
+            self.odom.rows(a, last + 2),
+            self.scenario.gravity_model,
+            e0_epoch_ns=self.scenario.start_time_ns,
+        )
+        sl = slice(a, last + 2)
+        off = OffsetArrays(
+            self.offsets.lever_arm[sl], self.offsets.displacement[sl], self.offsets.c_bvar_bref[sl]
+        )
+        zero = OffsetArrays(
+            self.zero.lever_arm[sl], self.zero.displacement[sl], self.zero.c_bvar_bref[sl]
+        )
+        variation = generate_variation(window, off, self.method, self.gravity, lead)
+        regenerated = generate_variation(window, zero, self.method, self.gravity, lead)
+        res["variation"] = stream_residuals(variation)
+        res["variation/reference"] = stream_residuals(regenerated)
+        out = variation_batches(self.scenario, variation, regenerated)
+        if lead:
+            out = [_drop_up_to(b, variation.t0_ns) for b in out]  # truth already published
+        self.emitted = last
+        return out
+
+
 def generate_dataset(
     scenario: Scenario,
     out: str | Path,
@@ -288,65 +327,31 @@ def generate_dataset(
         cycles=total,
         duration_s=total * scenario.period_ns * 1e-9,
     )
-    residuals: list[Residuals] = []
 
     def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
-        if scenario.variation is None:
-            for piece, batches in reference_batch_chunks(scenario, trajectory):
-                yield piece.cycles, {"reference": stream_residuals(piece)}, batches
-            return
-        # With a variation: the whole reference first (the variation looks ahead and is computed
-        # from the decoded messages), then everything in stamp windows.
-        all_batches: list[list[Batch]] = []
-        parts: list[Residuals] = []
+        streamer = None if scenario.variation is None else _VariationStreamer(scenario, total)
         for piece, batches in reference_batch_chunks(scenario, trajectory):
-            all_batches.append(batches)
-            parts.append(stream_residuals(piece))
-        merged = [
-            Batch(
-                group[0].topic,
-                group[0].msgtype,
-                np.concatenate([b.stamps_ns for b in group]),
-                [p for b in group for p in b.payloads],
-            )
-            for group in zip(*all_batches, strict=True)
-        ]
-        reference = decode_reference(scenario, merged)
-        variation, regenerated = variation_streams(scenario, reference)
-        merged += variation_batches(scenario, variation, regenerated)
-        residuals = {
-            "reference": merge_residuals(parts),
-            "variation": stream_residuals(variation),
-            "variation/reference": stream_residuals(regenerated),
-        }
-        window = CHUNK_CYCLES * scenario.period_ns
-        first = True
-        done = 0
-        for batch_window in _time_windows(merged, window):
-            cycles = min(CHUNK_CYCLES, total - done)
-            done += cycles
-            yield cycles, residuals if first else {}, batch_window
-            first = False
+            res = {"reference": stream_residuals(piece)}
+            if streamer is not None:
+                batches = batches + streamer.feed(batches, res)
+            yield piece.cycles, res, batches
 
     producer = _Producer(pieces())
     done = 0
-    others: dict[str, Residuals] = {}
+    parts: dict[str, list[Residuals]] = {}
     try:
         with BagWriter(out, storage=storage, force=force) as writer:
             for cycles, res, batches in producer:  # type: ignore[misc]
                 writer.write_batches(batches)
-                if "reference" in res and len(res) == 1:
-                    residuals.append(res["reference"])
-                else:
-                    others.update(res)
+                for name, r in res.items():
+                    parts.setdefault(name, []).append(r)
                 done += cycles
                 if progress is not None:
                     progress("generating", done, total)
             summary.topics = dict(writer.message_counts)
     finally:
         producer.close()
-    summary.residuals["reference"] = merge_residuals(residuals)
-    summary.residuals.update(others)
+    summary.residuals = {name: merge_residuals(r) for name, r in parts.items()}
     summary.elapsed_s = time.perf_counter() - start
     return summary
 

@@ -141,6 +141,29 @@ class _Fields:
                 return False
         return True
 
+    def rows(self, start: int, stop: int) -> Any:
+        """Messages ``start..stop-1`` as a container of the same type (views, no copy)."""
+        values = {
+            f.name: getattr(self, f.name)
+            if isinstance(getattr(self, f.name), str)
+            else getattr(self, f.name)[start:stop]
+            for f in fields(self)  # type: ignore[arg-type]
+        }
+        return type(self)(**values)
+
+    def append(self, other: Any) -> Any:
+        """This container followed by ``other`` (same type and frame ids)."""
+        values = {}
+        for f in fields(self):  # type: ignore[arg-type]
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, str):
+                if a != b:
+                    raise ValueError(f"{type(self).__name__}.{f.name}: {a!r} != {b!r}")
+                values[f.name] = a
+            else:
+                values[f.name] = np.concatenate([a, b])
+        return type(self)(**values)
+
     def check(self) -> None:
         """Validate shapes against ``len(self)``; raises ValueError naming the field."""
         n = len(self)

@@ -300,6 +300,7 @@ def method2(
     g = np.empty_like(r_con)
     dv = np.empty_like(dalpha)
     r[0::2], v[0::2] = r_con[0::2], v_con[0::2]
+
     def grav(x: Array, m: Array | int) -> Array:
         return gravity(x) if cycle_gravity is None else cycle_gravity(x, np.asarray(m))
 

@@ -1,0 +1,697 @@
+"""``variation_node``: the variation and the regenerated reference, live (SPEC §4, §6).
+
+It subscribes raw to the reference Imu and Odometry topics, decodes every payload with the
+project's CDR codec, pairs Imu m with Odometry m by stamp (``m = (stamp - start_time) / T``, the
+scenario's cycle grid) and, as soon as the look-ahead cycle 2n+1 of an even cycle 2n has
+arrived, solves the pair (2n-1, 2n) with :func:`~strapdown_ros.core.variation.generate_variation`
+on the 5-cycle window 2n-3..2n+1 (``lead=1``; at the start of a run the window is cycles 0..3,
+``lead=0``, giving cycles 0..2) twice: with the scenario's offsets at the absolute cycles (the
+variation) and with zero offsets (the regenerated reference). The new messages are serialized
+by the same :func:`~strapdown_ros.dataset.variation_batches` as ``strapdown-sim generate`` and
+published raw in :func:`~strapdown_ros.bag.batches.merge_order`. Because every window
+reproduces the vectorized offline solution bit for bit, the published messages are identical to
+the bag's, byte for byte. The node is at most 2 cycles behind its input.
+
+A gap, a duplicate with different content or an out-of-order stamp breaks that equivalence: it
+is logged (WARN, with the stamps) and the solution restarts from the next consistent cycle as a
+new run (``lead=0``, one-sided velocity constraint), which then differs from an uninterrupted
+offline run by design. :class:`VariationSolver` holds that logic and no rclpy; the node wraps it.
+Parameters and behaviour: docs/nodes.md.
+
+Exit status: 0 done (or stopped by SIGINT/SIGTERM), 1 failure while running, 2 invalid
+parameter or scenario.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.batches import Batch, merge_order
+from strapdown_ros.core.variation import GRAVITY_MODES, OffsetArrays, generate_variation
+from strapdown_ros.dataset import scenario_offsets, variation_batches, variation_settings
+from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
+from strapdown_ros.nodes._common import (
+    EXIT_FAILURE,
+    EXIT_INVALID,
+    EXIT_OK,
+    ParameterError,
+    declare_bool,
+    declare_int,
+    declare_number,
+    declare_string,
+    declare_string_array,
+    message_class,
+    qos_from_parameters,
+)
+from strapdown_ros.reference import build_trajectory, output_cycles
+from strapdown_ros.scenario import Scenario, ScenarioError, load_scenario
+
+NODE_NAME = "variation_node"
+IMU, ODOM = "imu", "odom"
+#: Input topic parameters and the recording.topics key each defaults to.
+INPUT_PARAMETERS = {
+    "reference_imu_topic": "reference_imu",
+    "reference_odom_topic": "reference_odom",
+}
+#: Output topic parameters and the recording.topics key each defaults to.
+OUTPUT_PARAMETERS = {
+    "variation_imu_topic": "variation_imu",
+    "variation_odom_topic": "variation_odom",
+    "variation_fix_topic": "variation_fix",
+    "variation_reference_imu_topic": "variation_reference_imu",
+    "variation_reference_odom_topic": "variation_reference_odom",
+}
+#: Seconds to wait for the subscribers' acknowledgements when done, then the grace period.
+DRAIN_TIMEOUT_S = 10.0
+GRACE_S = 0.5
+
+Log = Callable[[str], None]
+#: An older stamp at most this many cycles behind the last one is a late message (dropped);
+#: a larger backward jump means the input stream restarted (the solver starts afresh).
+MAX_LATE_CYCLES = 10
+
+
+def format_stamp(stamp_ns: int) -> str:
+    """``sec.nanosec`` of a stamp (ns since the epoch)."""
+    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
+
+
+def _concat(items: list) -> object:
+    """One field container of several one-message containers of the same type."""
+    first = items[0]
+    values = {}
+    for f in dataclasses.fields(first):
+        value = getattr(first, f.name)
+        if isinstance(value, str):
+            values[f.name] = value
+        else:
+            values[f.name] = np.concatenate([np.asarray(getattr(i, f.name)) for i in items])
+    return type(first)(**values)
+
+
+def _drop_up_to(b: Batch, stamp_ns: int) -> Batch:
+    keep = int(np.searchsorted(b.stamps_ns, stamp_ns, side="right"))
+    return Batch(b.topic, b.msgtype, b.stamps_ns[keep:], list(b.payloads[keep:]))
+
+
+@dataclass
+class Timing:
+    """Processing time of the solved windows (wall and CPU seconds, one entry per window)."""
+
+    wall: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
+    decode_wall: float = 0.0
+    decoded: int = 0
+
+    def summary(self, cycles: int) -> str:
+        if not self.wall:
+            return "no window solved"
+        w = np.asarray(self.wall) * 1e3
+        per_cycle_cpu = sum(self.cpu) * 1e3 / max(cycles, 1)
+        return (
+            f"{len(w)} windows: wall per window mean {w.mean():.2f} ms, median "
+            f"{np.median(w):.2f} ms, p99 {np.percentile(w, 99):.2f} ms, max {w.max():.2f} ms; "
+            f"CPU per published cycle {per_cycle_cpu:.2f} ms; decoding "
+            f"{self.decode_wall * 1e3 / max(self.decoded, 1):.3f} ms per message"
+        )
+
+
+class VariationSolver:
+    """The streaming variation (no rclpy): messages in, serialized messages out.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Supplies the cycle grid (``start_time_ns``, T), the gravitation model, the variation
+        settings and the output topic/frame names (``recording``).
+    cycles : int
+        M, the scenario's last reference cycle; later stamps are ignored.
+    offsets : OffsetArrays
+        The scenario's offsets at cycles 0..M (:func:`~strapdown_ros.dataset.scenario_offsets`).
+    info, warn, error : callables
+        Loggers.
+
+    :meth:`on_message` takes one raw payload of the Imu or Odometry input and returns the
+    ``(topic, stamp_ns, payload)`` to publish, in merge order.
+
+    Runs. A run is a stretch of consecutive, consistent reference cycles ``start..``; its
+    output equals ``generate_variation`` on the reference restricted to those cycles (the first
+    run of an uninterrupted stream from cycle 0: the offline output). A gap, a duplicate with
+    different content, a frame change or an Imu/Odometry frame mismatch ends the run and
+    starts a new one at the first cycle whose data is all consistent; the published output
+    never overlaps between runs. An out-of-order message is dropped (the jump before it already
+    started a new run); an identical duplicate is dropped.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        cycles: int,
+        offsets: OffsetArrays,
+        info: Log = print,
+        warn: Log = print,
+        error: Log = print,
+    ) -> None:
+        self.scenario = scenario
+        self.method, self.gravity = variation_settings(scenario)
+        self.cycles = cycles
+        self.offsets = offsets
+        self.t0_ns = scenario.start_time_ns
+        self.period_ns = scenario.period_ns
+        self.earth_frame = scenario.recording.frames["earth"]
+        self.info, self.warn, self.error = info, warn, error
+        self.topics = {
+            IMU: scenario.recording.topics["reference_imu"],
+            ODOM: scenario.recording.topics["reference_odom"],
+        }
+        self.last: dict[str, int | None] = {IMU: None, ODOM: None}
+        self.last_payload: dict[str, bytes] = {IMU: b"", ODOM: b""}
+        self.buffer: dict[str, dict[int, object]] = {IMU: {}, ODOM: {}}
+        self.run_start: int | None = None
+        self.published: int | None = None  # last cycle published in the current run
+        self.body_frame: str | None = None  # Imu frame id (= Odometry child) of the run
+        self.runs = 0  # runs that published something
+        self.published_cycles = 0
+        self.timing = Timing()
+        self._warned_beyond = False
+        self._warned_frame = False
+
+    # ------------------------------------------------------------------------------------------
+
+    def stamp(self, m: int) -> str:
+        return format_stamp(self.t0_ns + m * self.period_ns)
+
+    def describe(self, m: int) -> str:
+        return f"cycle {m} (stamp {self.stamp(m)})"
+
+    @property
+    def started(self) -> bool:
+        return self.run_start is not None
+
+    @property
+    def finished(self) -> bool:
+        """True when the current run cannot publish more cycles of the scenario."""
+        if self.run_start is None:
+            return False
+        base = self.run_start if self.published is None else self.published
+        return base + 3 > self.cycles
+
+    def _first_run_cycle(self, kind: str, m: int) -> int:
+        """First run start that needs no data of ``kind`` before cycle ``m``.
+
+        A run starting at r uses Odometry r.. and Imu r+1.. (the increments after its state).
+        """
+        return m if kind == ODOM else m - 1
+
+    def _reset(self) -> None:
+        """Forget everything (the input restarted)."""
+        self.last = {IMU: None, ODOM: None}
+        self.last_payload = {IMU: b"", ODOM: b""}
+        self.buffer = {IMU: {}, ODOM: {}}
+        self.run_start = self.published = self.body_frame = None
+
+    def restart(self, start: int, reason: str, log: bool = True) -> None:
+        """Start a new run at cycle ``start`` unless the current one starts there or later."""
+        if self.run_start is not None and self.run_start >= start:
+            return
+        if not log:
+            pass
+        elif self.run_start is not None:
+            done = (
+                f"published up to {self.describe(self.published)}"
+                if self.published is not None
+                else "nothing published in that run"
+            )
+            self.warn(
+                f"{reason}: restarting the solution at {self.describe(start)} ({done}); the "
+                "new run starts with a one-sided velocity constraint and differs from an "
+                "uninterrupted offline run"
+            )
+        elif start > 0:
+            self.warn(
+                f"{reason}: the solution starts at {self.describe(start)} and differs from the "
+                "offline run (which starts at cycle 0)"
+            )
+        else:
+            self.info(f"{reason}: the solution starts at {self.describe(start)}")
+        self.run_start = start
+        self.published = None
+        self.body_frame = None
+        for kind, low in ((ODOM, start), (IMU, start + 1)):
+            buf = self.buffer[kind]
+            for m in [m for m in buf if m < low]:
+                del buf[m]
+
+    # ------------------------------------------------------------------------------------------
+
+    def on_message(self, kind: str, payload: bytes) -> list[tuple[str, int, bytes]]:
+        """Take one raw payload of ``kind`` ('imu' | 'odom'); return what to publish."""
+        topic = self.topics[kind]
+        msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
+        t = time.perf_counter()
+        try:
+            msg = cdr.deserialize(msgtype, [payload])
+        except cdr.CdrError as exc:
+            self.error(f"{topic}: rejected a message that is not a {msgtype} of the expected "
+                       f"layout: {exc}")  # fmt: skip
+            return []
+        self.timing.decode_wall += time.perf_counter() - t
+        self.timing.decoded += 1
+        stamp = int(msg.stamps_ns[0])  # type: ignore[attr-defined]
+        offset = stamp - self.t0_ns
+        if offset < 0 or offset % self.period_ns:
+            self.warn(
+                f"{topic}: stamp {format_stamp(stamp)} is not on the scenario's cycle grid "
+                f"(start {format_stamp(self.t0_ns)}, T = {self.period_ns} ns); dropped"
+            )
+            return []
+        m = offset // self.period_ns
+        if m > self.cycles or (kind == IMU and m == 0):
+            if not self._warned_beyond:
+                self._warned_beyond = True
+                self.warn(
+                    f"{topic}: {self.describe(m)} is outside the scenario's cycles "
+                    f"({'1' if kind == IMU else '0'}..{self.cycles}); such messages are dropped"
+                )
+            return []
+
+        last = self.last[kind]
+        if last is None:
+            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self.restart(self._first_run_cycle(kind, m), f"first message on {topic}")
+        elif m == last + 1:
+            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+        elif m == last:
+            if bytes(payload) == self.last_payload[kind]:
+                self.warn(f"{topic}: duplicate stamp {format_stamp(stamp)} (cycle {m}), "
+                          "identical content; dropped")  # fmt: skip
+                return []
+            self.warn(f"{topic}: duplicate stamp {format_stamp(stamp)} (cycle {m}) "
+                      "with different content; both dropped")  # fmt: skip
+            self.buffer[kind].pop(m, None)
+            self.restart(self._first_run_cycle(kind, m + 1), f"{topic}: duplicate")
+            return []
+        elif m < last - MAX_LATE_CYCLES:
+            self.warn(
+                f"{topic}: stamp {format_stamp(stamp)} (cycle {m}) jumps back "
+                f"{last - m} cycles from {format_stamp(self.t0_ns + last * self.period_ns)} "
+                f"(cycle {last}): the input restarted; starting afresh"
+            )
+            self._reset()
+            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self.restart(self._first_run_cycle(kind, m), f"first message on {topic} after the jump")
+        elif m < last:
+            self.warn(
+                f"{topic}: out-of-order stamp {format_stamp(stamp)} (cycle {m}) after "
+                f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); dropped"
+            )
+            return []
+        else:
+            self.warn(
+                f"{topic}: gap: stamp {format_stamp(stamp)} (cycle {m}) follows "
+                f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); "
+                f"{m - last - 1} cycle(s) missing"
+            )
+            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self.restart(self._first_run_cycle(kind, m), f"{topic}: gap")
+
+        if kind == ODOM and msg.frame_id != self.earth_frame:  # type: ignore[attr-defined]
+            self.error(
+                f"{topic}: {self.describe(m)}: header.frame_id {msg.frame_id!r} is not the "  # type: ignore[attr-defined]
+                f"Earth frame {self.earth_frame!r} (recording.frames.earth); rejected, the "
+                f"solution restarts at cycle {m + 1}"
+            )
+            self.restart(m + 1, "", log=False)
+            return []
+        assert self.run_start is not None
+        if m < self.run_start + (kind == IMU):
+            return []  # before the current run (the other topic restarted it later)
+        self.buffer[kind][m] = msg
+        if not self._check_frames(m):
+            return []
+        return self.advance()
+
+    def _check_frames(self, m: int) -> bool:
+        """Imu frame = Odometry child frame at cycle m, and constant within the run."""
+        imu = self.buffer[IMU].get(m)
+        odom = self.buffer[ODOM].get(m)
+        if imu is not None and odom is not None and imu.frame_id != odom.child_frame_id:  # type: ignore[attr-defined]
+            self.error(
+                f"{self.describe(m)}: Imu frame_id {imu.frame_id!r} differs from the Odometry "  # type: ignore[attr-defined]
+                f"child_frame_id {odom.child_frame_id!r}: the reference messages do not "  # type: ignore[attr-defined]
+                f"describe one body; rejected, the solution restarts at cycle {m + 1}"
+            )
+            self.buffer[IMU].pop(m, None)
+            self.buffer[ODOM].pop(m, None)
+            self.restart(m + 1, "", log=False)
+            return False
+        for msg, name in ((imu, "Imu frame_id"), (odom, "Odometry child_frame_id")):
+            if msg is None:
+                continue
+            frame = msg.frame_id if msg is imu else msg.child_frame_id  # type: ignore[attr-defined]
+            if self.body_frame is None:
+                self.body_frame = frame
+                expected = self.scenario.recording.frames["reference_imu"]
+                if frame != expected and not self._warned_frame:
+                    self._warned_frame = True
+                    self.warn(
+                        f"the reference body frame is {frame!r}, not recording.frames."
+                        f"reference_imu {expected!r}; the output carries the scenario's frames"
+                    )
+            elif frame != self.body_frame:
+                self.error(
+                    f"{self.describe(m)}: {name} {frame!r} differs from the run's body frame "
+                    f"{self.body_frame!r}; rejected, the solution restarts at cycle {m + 1}"
+                )
+                self.buffer[IMU].pop(m, None)
+                self.buffer[ODOM].pop(m, None)
+                self.restart(m + 1, "", log=False)
+                return False
+        return True
+
+    # ------------------------------------------------------------------------------------------
+
+    def _window(self, first: int, samples: int) -> tuple[object, object] | None:
+        """Imu first+1.. and Odometry first.. of ``samples`` cycles, if all have arrived."""
+        odom, imu = self.buffer[ODOM], self.buffer[IMU]
+        cycles = range(first, first + samples)
+        if not all(m in odom for m in cycles) or not all(m in imu for m in cycles[1:]):
+            return None
+        return _concat([imu[m] for m in cycles[1:]]), _concat([odom[m] for m in cycles])
+
+    def advance(self) -> list[tuple[str, int, bytes]]:
+        """Solve every window whose look-ahead has arrived; return the messages to publish."""
+        out: list[tuple[str, int, bytes]] = []
+        while self.run_start is not None and not self.finished:
+            if self.published is None:
+                first, samples, lead = self.run_start, 4, 0
+            else:
+                first, samples, lead = self.published - 1, 5, 1
+            window = self._window(first, samples)
+            if window is None:
+                break
+            wall, cpu = time.perf_counter(), time.thread_time()
+            out += self._solve(first, samples, lead, *window)
+            self.timing.wall.append(time.perf_counter() - wall)
+            self.timing.cpu.append(time.thread_time() - cpu)
+            new_last = first + lead + 2
+            self.runs += self.published is None
+            self.published_cycles += new_last - (self.published if lead else first - 1)
+            self.published = new_last
+            for kind, low in ((ODOM, new_last - 1), (IMU, new_last)):
+                buf = self.buffer[kind]
+                for m in [m for m in buf if m < low]:
+                    del buf[m]
+        return out
+
+    def _solve(
+        self, first: int, samples: int, lead: int, imu: ImuFields, odom: OdometryFields
+    ) -> list[tuple[str, int, bytes]]:
+        reference = stream_from_messages(
+            imu, odom, self.scenario.gravity_model, e0_epoch_ns=self.t0_ns
+        )
+        sl = slice(first, first + samples)
+        offsets = OffsetArrays(
+            self.offsets.lever_arm[sl], self.offsets.displacement[sl], self.offsets.c_bvar_bref[sl]
+        )
+        variation = generate_variation(reference, offsets, self.method, self.gravity, lead=lead)
+        regenerated = generate_variation(
+            reference, OffsetArrays.zero(samples), self.method, self.gravity, lead=lead
+        )
+        batches = variation_batches(self.scenario, variation, regenerated)
+        if self.published is not None:
+            done = self.t0_ns + self.published * self.period_ns
+            batches = [_drop_up_to(b, done) for b in batches]
+        return [
+            (batches[k].topic, stamp, bytes(batches[k].payloads[i]))
+            for k, i, stamp in merge_order(batches)
+        ]
+
+
+# ----------------------------------------------------------------------------------------------
+
+
+class VariationNode(Node):
+    """Reference Imu/Odometry in; variation and regenerated reference out."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        path = declare_string(self, "scenario", "", "scenario YAML file (required)")
+        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
+        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
+        if not path:
+            raise ParameterError("scenario", "is required (the path of a scenario YAML file)")
+        if duration_s < 0:
+            raise ParameterError("duration_s", f"must be >= 0, got {duration_s}")
+        scenario = load_scenario(path, overrides, duration_s if duration_s > 0 else None)
+        if scenario.variation is None:
+            raise ScenarioError("variation", "missing: the scenario defines no variation")
+        method, gravity = _check_settings(scenario)
+        cycles = output_cycles(scenario, build_trajectory(scenario))
+        try:
+            offsets = scenario_offsets(scenario, cycles + 1)
+        except ValueError as exc:  # offsets name the dotted key: "variation.x: problem"
+            key, sep, problem = str(exc).partition(": ")
+            raise ScenarioError(key if sep else "variation", problem if sep else str(exc)) from None
+
+        topics = dict(scenario.recording.topics)
+        names: dict[str, str] = {}
+        for name, key in {**INPUT_PARAMETERS, **OUTPUT_PARAMETERS}.items():
+            topic = declare_string(
+                self, name, topics[key], f"topic (default recording.topics.{key})"
+            )
+            if not topic:
+                raise ParameterError(name, "must not be empty")
+            topics[key] = topic
+            names[topic] = name
+        used = [topics[k] for k in {**INPUT_PARAMETERS, **OUTPUT_PARAMETERS}.values()]
+        for topic in used:
+            if used.count(topic) > 1:
+                raise ParameterError(names[topic], f"topic {topic} is used twice: {used}")
+        self.qos = qos_from_parameters(self)
+        self.exit_when_done = declare_bool(
+            self, "exit_when_done", True, "exit after the last cycle or idle_timeout_s"
+        )
+        self.idle_timeout_s = declare_number(
+            self, "idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"
+        )
+        if self.idle_timeout_s <= 0:
+            raise ParameterError("idle_timeout_s", f"must be > 0, got {self.idle_timeout_s}")
+        self.wait_for_subscribers = declare_int(
+            self,
+            "wait_for_subscribers",
+            0,
+            "output subscriptions to wait for before subscribing",
+            0,
+        )
+        self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
+
+        recording = dataclasses.replace(scenario.recording, topics=topics)
+        self.scenario = dataclasses.replace(scenario, recording=recording)
+        log = self.get_logger()
+        self.solver = VariationSolver(
+            self.scenario,
+            cycles,
+            offsets,
+            info=log.info,
+            warn=lambda msg: log.warning(msg),
+            error=lambda msg: log.error(msg, throttle_duration_sec=1.0),
+        )
+        self.inputs = {IMU: topics["reference_imu"], ODOM: topics["reference_odom"]}
+        self._publishers_by_topic = {}
+        self.counts: dict[str, int] = {}
+        for key in OUTPUT_PARAMETERS.values():
+            topic = topics[key]
+            msgtype = cdr.NAVSATFIX if key.endswith("fix") else cdr.IMU
+            msgtype = cdr.ODOMETRY if key.endswith("odom") else msgtype
+            try:
+                self._publishers_by_topic[topic] = self.create_publisher(
+                    message_class(msgtype), topic, self.qos
+                )
+            except Exception as exc:  # invalid topic name
+                raise ParameterError(names[topic], str(exc)) from exc
+            self.counts[topic] = 0
+        self._input_subscriptions: list = []
+        self.last_input = 0.0
+        self.failure: BaseException | None = None
+        m_var = cycles - 1 - (cycles - 1) % 2
+        log.info(
+            f"scenario {scenario.path} ({scenario.name}): reference cycles 0..{cycles} at "
+            f"{scenario.rate_hz:g} Hz, variation cycles 0..{m_var}, method {method}, gravity "
+            f"{gravity}; input {self.inputs[IMU]}, {self.inputs[ODOM]}; output "
+            + ", ".join(self._publishers_by_topic)
+        )
+
+    def _subscribe(self) -> None:
+        for kind, topic in self.inputs.items():
+            msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
+            try:
+                sub = self.create_subscription(
+                    message_class(msgtype), topic, self._callback(kind), self.qos, raw=True
+                )
+            except Exception as exc:
+                param = next(p for p, k in INPUT_PARAMETERS.items() if k == f"reference_{kind}")
+                raise ParameterError(param, str(exc)) from exc
+            self._input_subscriptions.append(sub)
+
+    def _callback(self, kind: str):
+        def on_message(payload: bytes) -> None:
+            self.last_input = time.monotonic()
+            for topic, _, data in self.solver.on_message(kind, payload):
+                self._publishers_by_topic[topic].publish(data)
+                self.counts[topic] += 1
+
+        return on_message
+
+    # -----------------------------------------------------------------------------------------
+
+    def run(self, executor: SingleThreadedExecutor) -> int:
+        """Process the input until done (or a signal); return the exit status."""
+
+        def spin(timeout_s: float) -> None:
+            executor.spin_once(timeout_sec=timeout_s)
+
+        if not self._wait_for_subscribers(spin):
+            return EXIT_FAILURE
+        self._subscribe()
+        self.get_logger().info(f"subscribed to {self.inputs[IMU]} and {self.inputs[ODOM]}")
+        wall_start: float | None = None
+        cpu_start = 0.0
+        while rclpy.ok(context=self.context):
+            spin(0.1)
+            solver = self.solver
+            if wall_start is None and solver.started:
+                wall_start, cpu_start = time.monotonic(), time.process_time()
+            if not self.exit_when_done or not solver.started:
+                continue
+            if solver.finished:
+                break
+            if time.monotonic() - self.last_input > self.idle_timeout_s:
+                self.get_logger().warning(
+                    f"no input for {self.idle_timeout_s:g} s; stopping before the end of the "
+                    f"scenario (last published: cycle {solver.published})"
+                )
+                break
+        if not rclpy.ok(context=self.context):
+            raise ExternalShutdownException()
+        wall = time.monotonic() - (wall_start or time.monotonic())
+        self._log_summary(wall, time.process_time() - cpu_start if wall_start else 0.0)
+        self._drain(spin)
+        return EXIT_OK
+
+    def _wait_for_subscribers(self, spin: Callable[[float], None]) -> bool:
+        wanted = self.wait_for_subscribers
+        if wanted <= 0:
+            return True
+        pubs = list(self._publishers_by_topic.values())
+        self.get_logger().info(
+            f"waiting for {wanted} subscription(s) on every output topic "
+            f"(timeout {self.wait_timeout_s:g} s)"
+        )
+        deadline = time.monotonic() + self.wait_timeout_s
+        while True:
+            missing = [p for p in pubs if p.get_subscription_count() < wanted]
+            if not missing:
+                return True
+            if time.monotonic() > deadline:
+                self.get_logger().error(
+                    f"timeout after {self.wait_timeout_s:g} s waiting for {wanted} "
+                    "subscription(s) on "
+                    + ", ".join(
+                        f"{p.topic_name} (has {p.get_subscription_count()})" for p in missing
+                    )
+                )
+                return False
+            spin(0.02)
+
+    def _drain(self, spin: Callable[[float], None]) -> None:
+        """Let the subscribers receive everything: acknowledgements, then a grace period."""
+        deadline = time.monotonic() + DRAIN_TIMEOUT_S
+        for pub in self._publishers_by_topic.values():
+            while rclpy.ok(context=self.context):
+                if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
+                    break
+                if time.monotonic() > deadline:
+                    self.get_logger().warning(
+                        f"{pub.topic_name}: messages not acknowledged within {DRAIN_TIMEOUT_S:g} s"
+                    )
+                    break
+        end = time.monotonic() + GRACE_S
+        while time.monotonic() < end and rclpy.ok(context=self.context):
+            spin(max(end - time.monotonic(), 0.0))
+
+    def _log_summary(self, elapsed: float, cpu: float) -> None:
+        s = self.solver
+        total = sum(self.counts.values())
+        lines = [
+            f"published {total} messages ({s.published_cycles} cycles, {s.runs} run(s)) in "
+            f"{elapsed:.3f} s of wall time; process CPU {cpu:.3f} s "
+            f"({100 * cpu / max(elapsed, 1e-9):.0f} % of one core)",
+            f"processing: {s.timing.summary(s.published_cycles)}",
+        ]
+        lines += [f"  {t}: {n}" for t, n in self.counts.items()]
+        self.get_logger().info("\n".join(lines))
+
+
+def _check_settings(scenario: Scenario) -> tuple[int, str]:
+    """``variation.method`` / ``gravity`` the node supports (ScenarioError naming the key)."""
+    cfg = scenario.variation or {}
+    try:
+        method, gravity = variation_settings(scenario)
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(
+            "variation.method", f"must be 1 or 2, got {cfg.get('method')!r}"
+        ) from exc
+    if method == 1:
+        raise ScenarioError(
+            "variation.method",
+            "variation_node implements Method 2 only (Method 1's velocity recursion runs "
+            "through the whole stream); use strapdown-sim generate for Method 1",
+        )
+    if method != 2:
+        raise ScenarioError("variation.method", f"must be 1 or 2, got {method!r}")
+    if gravity not in GRAVITY_MODES:
+        raise ScenarioError(
+            "variation.gravity", f"must be one of {', '.join(GRAVITY_MODES)}, got {gravity!r}"
+        )
+    return method, gravity
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node; return the exit status."""
+    rclpy.init(args=args)
+    logger = rclpy.logging.get_logger(NODE_NAME)
+    node: VariationNode | None = None
+    try:
+        node = VariationNode()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        return node.run(executor)
+    except ParameterError as exc:
+        logger.error(f"invalid parameter: {exc}")
+        return EXIT_INVALID
+    except ScenarioError as exc:
+        logger.error(f"invalid scenario: {exc}")
+        return EXIT_INVALID
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return EXIT_OK
+    except Exception as exc:
+        if not rclpy.ok():
+            return EXIT_OK
+        logger.error(f"failed: {exc}\n{traceback.format_exc()}")
+        return EXIT_FAILURE
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
