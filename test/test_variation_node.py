@@ -1,0 +1,605 @@
+"""variation_node publishes exactly what ``strapdown-sim generate`` writes (SPEC §4, §6).
+
+A bag is generated offline for 2 s of the default scenario with a variation section (lever arm,
+bending, scan). Then, as separate processes over real DDS in this session's ROS domain:
+
+1. ``trajectory_node`` → ``variation_node`` → raw recorder: every ``/variation/*`` and
+   ``/variation/reference/*`` payload equals the bag's (bytes, up to Fast DDS' NavSatFix
+   padding; decoded fields bit for bit).
+2. A replay process publishes the bag's reference with one cycle dropped and two cycles
+   swapped: the node logs the gap and the out-of-order stamps, restarts, publishes the expected
+   runs (the first equal to the bag, the restarted ones equal to the offline solution of the
+   truncated reference and obeying the exactness rule) and recovers until the end.
+3. Invalid parameters or scenario: exit 2 naming the key.
+
+:class:`VariationSolver` (no DDS) is also checked in-process: identity with the offline path,
+duplicates, frame/layout mismatches. Every wait has a timeout; children are killed at teardown.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
+
+from strapdown_ros.bag import cdr  # noqa: E402
+from strapdown_ros.bag.batches import Batch, merge_order, stream_batches  # noqa: E402
+from strapdown_ros.bag.reader import read_bag  # noqa: E402
+from strapdown_ros.core.exactness import stream_residuals  # noqa: E402
+from strapdown_ros.core.variation import OffsetArrays, _window, generate_variation  # noqa: E402
+from strapdown_ros.dataset import (  # noqa: E402
+    scenario_offsets,
+    variation_batches,
+    variation_settings,
+)
+from strapdown_ros.messages import stream_from_messages  # noqa: E402
+from strapdown_ros.nodes.variation_node import VariationSolver  # noqa: E402
+from strapdown_ros.scenario import load_scenario  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+HELPERS = Path(__file__).resolve().parent / "ros_helpers"
+RECORDER = HELPERS / "raw_recorder.py"
+REPLAY = HELPERS / "reference_replay.py"
+DURATION_S = 2.0
+CYCLES = 400  # reference cycles 0..400 at 200 Hz
+#: A variation with a lever arm, a bending sinusoid and a scan (keys: strapdown_ros.core.offsets);
+#: it replaces any variation section of the scenario file.
+VARIATION = (
+    "variation={lever_arm_m: [-6.0, 1.5, -0.3], displacement_m: [0.0, 0.0, 0.15], "
+    "bending: {sinusoids: [{amplitude_m: [0.0, 0.0, 0.02], frequency_hz: 3.0}]}, "
+    "mounting_rph_deg: [0.0, 0.0, 90.0], "
+    "scan: {kind: sweep, amplitude_deg: 30.0, rate_dps: 20.0}}"
+)
+OUTPUTS = {
+    "/variation/imu": "sensor_msgs/msg/Imu",
+    "/variation/odom": "nav_msgs/msg/Odometry",
+    "/variation/fix": "sensor_msgs/msg/NavSatFix",
+    "/variation/reference/imu": "sensor_msgs/msg/Imu",
+    "/variation/reference/odom": "nav_msgs/msg/Odometry",
+}
+TIMEOUT_S = 60.0
+#: Faults of the replay test: cycle DROP is missing, cycles SWAP and SWAP+1 are swapped.
+DROP, SWAP = 101, 250
+
+
+def _executable(name: str) -> str:
+    local = Path(sys.executable).parent / name
+    found = str(local) if local.exists() else shutil.which(name)
+    if not found:
+        pytest.skip(f"{name} is not installed (make setup)")
+    return found
+
+
+class Proc:
+    """A child process whose stdout/stderr go to files (no pipe can fill up)."""
+
+    def __init__(self, args: list[str], env: dict[str, str], log_dir: Path, name: str) -> None:
+        self.name = name
+        self.out_path = log_dir / f"{name}.out"
+        self.err_path = log_dir / f"{name}.err"
+        with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
+            self.proc = subprocess.Popen(
+                args, env=env, stdin=subprocess.DEVNULL, stdout=out, stderr=err, cwd=REPO
+            )
+
+    @property
+    def output(self) -> str:
+        return self.out_path.read_text() + self.err_path.read_text()
+
+    def wait_for(self, pattern: str, deadline: float) -> None:
+        while not re.search(pattern, self.output):
+            if self.proc.poll() is not None and not re.search(pattern, self.output):
+                pytest.fail(f"{self.name} exited before {pattern!r}:\n{self.describe()}")
+            if time.monotonic() > deadline:
+                pytest.fail(f"timeout waiting for {pattern!r} from {self.name}:\n{self.describe()}")
+            time.sleep(0.05)
+
+    def wait(self, deadline: float) -> int:
+        try:
+            return self.proc.wait(timeout=max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"timeout waiting for {self.name} to exit:\n{self.describe()}")
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(timeout=10)
+
+    def describe(self) -> str:
+        return f"--- {self.name} (pid {self.proc.pid}, rc {self.proc.poll()})\n{self.output}"
+
+
+@pytest.fixture
+def procs():
+    """Children started by a test; killed at teardown if still running."""
+    children: list[Proc] = []
+    yield children
+    for child in children:
+        child.kill()
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario(SCENARIO, [VARIATION], DURATION_S)
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    """``strapdown-sim generate`` of the scenario with the variation: (path, contents)."""
+    out = tmp_path_factory.mktemp("generate") / "bag"
+    cmd = [_executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
+    cmd += ["--duration", str(DURATION_S), "--set", VARIATION, "--quiet"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    contents = read_bag(out, raw=True)
+    counts = {t: len(d.payloads) for t, d in contents.topics.items()}
+    assert counts["/reference/odom"] == CYCLES + 1
+    assert counts["/variation/odom"] == CYCLES - 1 and counts["/variation/imu"] == CYCLES - 2
+    return out, contents
+
+
+def _params(*params: str) -> list[str]:
+    args = []
+    for p in params:
+        args += ["-p", p]
+    return args
+
+
+def _variation_node(procs, env, tmp_path, *params: str) -> Proc:
+    args = [_executable("variation_node"), "--ros-args"]
+    args += _params(
+        f"scenario:={SCENARIO}",
+        f"overrides:=['{VARIATION}']",
+        f"duration_s:={DURATION_S}",
+        "wait_for_subscribers:=1",
+        *params,
+    )
+    node = Proc(args, env, tmp_path, "variation_node")
+    procs.append(node)
+    return node
+
+
+def _recorder(procs, env, tmp_path, counts: dict[str, int], extra=()) -> tuple[Proc, Path]:
+    out = tmp_path / "recording.pkl"
+    args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
+    for topic, msgtype in [*OUTPUTS.items(), *extra]:
+        args += ["--topic", f"{topic}={msgtype}={counts[topic]}"]
+    rec = Proc(args, env, tmp_path, "recorder")
+    procs.append(rec)
+    return rec, out
+
+
+def _padded(payload: bytes) -> bytes:
+    """Fast DDS delivers a payload whose length is not a multiple of 4 (NavSatFix, 133 bytes)
+    with 1-3 zero bytes appended (see test_trajectory_node.py); the CDR content is unchanged."""
+    return bytes(payload) + bytes(-len(payload) % 4)
+
+
+def _bitwise_equal(a, b) -> bool:
+    if type(a) is not type(b):
+        return False
+    for f in fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, str) or isinstance(y, str):
+            if x != y:
+                return False
+            continue
+        x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)
+        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
+            return False
+    return True
+
+
+def _stamp_of(payload: bytes) -> int:
+    sec, nanosec = np.frombuffer(bytes(payload)[4:12], dtype="<i4,<u4")[0]
+    return int(sec) * 1_000_000_000 + int(nanosec)
+
+
+def _cycle(scenario, stamp: int) -> int:
+    return (stamp - scenario.start_time_ns) // scenario.period_ns
+
+
+def _reference(contents, scenario):
+    imu, odom = contents.topics["/reference/imu"], contents.topics["/reference/odom"]
+    return stream_from_messages(
+        cdr.deserialize(imu.msgtype, imu.payloads),
+        cdr.deserialize(odom.msgtype, odom.payloads),
+        scenario.gravity_model,
+        e0_epoch_ns=scenario.start_time_ns,
+    )
+
+
+def _offline_run(scenario, reference, start: int) -> dict[str, dict[int, bytes]]:
+    """Offline solution of a run starting at ``start``: topic -> {stamp: payload}."""
+    method, gravity = variation_settings(scenario)
+    n = reference.cycles + 1 - start
+    offsets = scenario_offsets(scenario, reference.cycles + 1)
+    sub = OffsetArrays(
+        *(a[start:] for a in (offsets.lever_arm, offsets.displacement, offsets.c_bvar_bref))
+    )
+    ref = _window(reference, start, n)
+    var = generate_variation(ref, sub, method, gravity)
+    reg = generate_variation(ref, OffsetArrays.zero(n), method, gravity)
+    return {
+        b.topic: dict(zip(b.stamps_ns.tolist(), map(bytes, b.payloads), strict=True))
+        for b in variation_batches(scenario, var, reg)
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. trajectory_node -> variation_node -> recorder
+# ---------------------------------------------------------------------------------------------
+
+
+def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
+    _, contents = bag
+    deadline = time.monotonic() + TIMEOUT_S
+    counts = {t: len(contents.topics[t].payloads) for t in OUTPUTS}
+    counts["/reference/fix"] = CYCLES + 1
+    # The recorder also takes /reference/fix so that trajectory_node's wait on every topic means:
+    # imu and odom matched by variation_node (which subscribes only once the recorder matched
+    # its outputs), fix by the recorder. No message can be lost to discovery.
+    rec, out = _recorder(procs, ros_env, tmp_path, counts, [("/reference/fix", cdr.NAVSATFIX)])
+    node = _variation_node(procs, ros_env, tmp_path)
+    node.wait_for(r"subscribed to /reference/imu", deadline)
+    traj = Proc(
+        [_executable("trajectory_node"), "--ros-args"]
+        + _params(
+            f"scenario:={SCENARIO}",
+            f"duration_s:={DURATION_S}",
+            "rate_factor:=1.0",
+            "time_source:=wall",
+            "wait_for_subscribers:=1",
+        ),
+        ros_env,
+        tmp_path,
+        "trajectory_node",
+    )
+    procs.append(traj)
+    assert traj.wait(deadline) == 0, traj.describe()
+    assert node.wait(deadline) == 0, node.describe() + rec.describe()
+    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
+    for p in (traj, node):
+        assert "Traceback" not in p.output and "WARN" not in p.output, p.describe()
+    with open(out, "rb") as f:
+        recording = pickle.load(f)
+
+    for topic in OUTPUTS:
+        got, want = recording["topics"][topic], contents.topics[topic]
+        assert len(got) == len(want.payloads), topic
+        bad = [
+            i for i, (g, w) in enumerate(zip(got, want.payloads, strict=True)) if g != _padded(w)
+        ]
+        assert not bad, f"{topic}: payloads {bad[:5]}... differ from the bag"
+        assert _bitwise_equal(cdr.deserialize(want.msgtype, got), want.fields), topic
+    assert f"published {sum(counts[t] for t in OUTPUTS)} messages" in node.output
+
+    # Latency: variation cycle m goes out when reference cycle m+1 or m+2 has arrived.
+    period = 1.0 / 200
+    fix_arrival = dict(
+        zip(
+            map(_stamp_of, recording["topics"]["/reference/fix"]),
+            recording["arrival"]["/reference/fix"],
+            strict=True,
+        )
+    )
+    lag = [
+        a - fix_arrival[_stamp_of(p)]
+        for p, a in zip(
+            recording["topics"]["/variation/odom"],
+            recording["arrival"]["/variation/odom"],
+            strict=True,
+        )
+    ]
+    median = float(np.median(lag))
+    print(f"lag behind the reference: median {median * 1e3:.1f} ms, max {max(lag) * 1e3:.1f} ms")
+    assert median < 3 * period, median
+    timing = re.search(r"processing: .*", node.output)
+    print(timing.group(0) if timing else node.output)
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. gap and out-of-order stamps
+# ---------------------------------------------------------------------------------------------
+
+
+def _runs() -> list[tuple[int, int]]:
+    """(first, last published) cycles of the runs for DROP and SWAP with 400 cycles.
+
+    A run starting at r whose input is consecutive up to cycle L publishes up to the largest
+    r + 2k with r + 2k + 1 <= L.
+    """
+    runs = []
+    for r, last_in in ((0, DROP - 1), (DROP + 1, SWAP - 1), (SWAP + 1, CYCLES)):
+        runs.append((r, r + 2 * ((last_in - 1 - r) // 2)))
+    return runs
+
+
+def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
+    path, contents = bag
+    deadline = time.monotonic() + TIMEOUT_S
+    runs = _runs()
+    counts = {}
+    for topic in OUTPUTS:
+        imu = topic.endswith("imu")
+        counts[topic] = sum(last - first + (0 if imu else 1) for first, last in runs)
+    rec, out = _recorder(procs, ros_env, tmp_path, counts)
+    node = _variation_node(procs, ros_env, tmp_path, "idle_timeout_s:=3.0")
+    node.wait_for(r"subscribed to /reference/imu", deadline)
+    replay = Proc(
+        [
+            sys.executable,
+            str(REPLAY),
+            "--bag",
+            str(path),
+            "--drop",
+            str(DROP),
+            "--swap",
+            str(SWAP),
+            "--interval",
+            "0.001",
+            "--timeout",
+            str(TIMEOUT_S - 10),
+        ],
+        ros_env,
+        tmp_path,
+        "replay",
+    )
+    procs.append(replay)
+    assert replay.wait(deadline) == 0, replay.describe()
+    assert node.wait(deadline) == 0, node.describe() + rec.describe()
+    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
+    log = node.output
+    assert "Traceback" not in log, node.describe()
+
+    def st(m: int) -> str:
+        t = scenario.start_time_ns + m * scenario.period_ns
+        return re.escape(f"{t // 1_000_000_000}.{t % 1_000_000_000:09d}")
+
+    for topic in ("/reference/odom", "/reference/imu"):
+        assert re.search(
+            rf"WARN.*{topic}: gap: stamp {st(DROP + 1)} .*follows {st(DROP - 1)}", log
+        ), log
+        assert re.search(
+            rf"WARN.*{topic}: out-of-order stamp {st(SWAP)} .*after {st(SWAP + 1)}", log
+        ), log
+    assert re.search(rf"WARN.*restarting the solution at cycle {DROP + 1} ", log), log
+    assert re.search(rf"WARN.*restarting the solution at cycle {SWAP + 1} ", log), log
+    assert "3 run(s)" in log, log
+
+    with open(out, "rb") as f:
+        recording = pickle.load(f)
+    reference = _reference(contents, scenario)
+    for k, (first, last) in enumerate(runs):
+        want = (
+            {
+                t: dict(
+                    zip(
+                        contents.topics[t].fields.stamps_ns.tolist(),
+                        contents.topics[t].payloads,
+                        strict=True,
+                    )
+                )
+                for t in OUTPUTS
+            }
+            if k == 0
+            else _offline_run(scenario, reference, first)
+        )
+        for topic in OUTPUTS:
+            lo = first + topic.endswith("imu")
+            got = [
+                p
+                for p in recording["topics"][topic]
+                if lo <= _cycle(scenario, _stamp_of(p)) <= last
+            ]
+            assert [_cycle(scenario, _stamp_of(p)) for p in got] == list(range(lo, last + 1))
+            for p in got:
+                assert p == _padded(want[topic][_stamp_of(p)]), (k, topic, _stamp_of(p))
+        if k == 0:
+            continue
+        # The restarted run on its own obeys the exactness rule (SPEC §3).
+        for imu_t, odom_t in (
+            ("/variation/imu", "/variation/odom"),
+            ("/variation/reference/imu", "/variation/reference/odom"),
+        ):
+            sel = [
+                [
+                    p
+                    for p in recording["topics"][t]
+                    if first <= _cycle(scenario, _stamp_of(p)) <= last
+                ]
+                for t in (imu_t, odom_t)
+            ]
+            stream = stream_from_messages(
+                cdr.deserialize(cdr.IMU, sel[0]),
+                cdr.deserialize(cdr.ODOMETRY, sel[1]),
+                scenario.gravity_model,
+                e0_epoch_ns=scenario.start_time_ns,
+            )
+            assert stream.cycles == last - first
+            assert stream_residuals(stream).within_spec(), (k, imu_t)
+    total = sum(len(v) for v in recording["topics"].values())
+    assert total == sum(counts.values())  # nothing else was published
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. invalid input
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("params", "expected"),
+    [
+        ([], r"parameter 'scenario': is required"),
+        (
+            [f"scenario:={SCENARIO}", "overrides:=['variation=null']"],
+            r"invalid scenario: variation: missing",
+        ),
+        (
+            [f"scenario:={SCENARIO}", "overrides:=['variation={method: 3}']"],
+            r"invalid scenario: variation\.method: must be 1 or 2",
+        ),
+        (
+            [f"scenario:={SCENARIO}", "overrides:=['variation={method: 1}']"],
+            r"invalid scenario: variation\.method: variation_node implements Method 2 only",
+        ),
+        (
+            [f"scenario:={SCENARIO}", "overrides:=['variation={lever_arm_m: [1, 2]}']"],
+            r"invalid scenario: variation\.lever_arm_m",
+        ),
+        (
+            [f"scenario:={SCENARIO}", f"overrides:=['{VARIATION}']", "qos_depth:=0"],
+            r"parameter 'qos_depth'",
+        ),
+        (
+            [
+                f"scenario:={SCENARIO}",
+                f"overrides:=['{VARIATION}']",
+                "variation_imu_topic:=/reference/imu",
+            ],
+            r"parameter 'variation_imu_topic': topic /reference/imu is used twice",
+        ),
+    ],
+    ids=["missing", "no-variation", "method-3", "method-1", "lever-arm", "qos", "same-topic"],
+)
+def test_invalid_input_exits_2(params, expected, ros_env):
+    args = [_executable("variation_node"), "--ros-args", *_params(*params)]
+    proc = subprocess.run(args, env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO)
+    output = proc.stdout + proc.stderr
+    assert proc.returncode == 2, output
+    assert re.search(expected, output), output
+    assert "Traceback" not in output, output
+
+
+# ---------------------------------------------------------------------------------------------
+# VariationSolver in-process (no DDS)
+# ---------------------------------------------------------------------------------------------
+
+
+class _Log:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def __call__(self, msg: str) -> None:
+        self.lines.append(msg)
+
+
+def _feed(solver, items) -> dict[str, list[bytes]]:
+    got: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
+    for kind, payload in items:
+        for topic, _, data in solver.on_message(kind, payload):
+            got[topic].append(data)
+    return got
+
+
+def _inputs(contents) -> list[tuple[str, bytes]]:
+    data = [contents.topics[t] for t in ("/reference/odom", "/reference/imu")]
+    batches = [Batch("", d.msgtype, d.fields.stamps_ns, d.payloads) for d in data]
+    return [(("odom", "imu")[k], bytes(data[k].payloads[i])) for k, i, _ in merge_order(batches)]
+
+
+def _solver(scenario) -> tuple[VariationSolver, _Log, _Log]:
+    warn, error = _Log(), _Log()
+    offsets = scenario_offsets(scenario, CYCLES + 1)
+    return (
+        VariationSolver(scenario, CYCLES, offsets, info=_Log(), warn=warn, error=error),
+        warn,
+        error,
+    )
+
+
+def test_solver_equals_generate_and_drops_identical_duplicates(bag, scenario):
+    _, contents = bag
+    items = _inputs(contents)
+    dup = next(
+        i
+        for i, (kind, p) in enumerate(items)
+        if kind == "imu" and _cycle(scenario, _stamp_of(p)) == 200
+    )
+    items.insert(dup + 1, items[dup])
+    solver, warn, error = _solver(scenario)
+    got = _feed(solver, items)
+    for topic in OUTPUTS:
+        assert got[topic] == [bytes(p) for p in contents.topics[topic].payloads], topic
+    assert solver.finished and solver.runs == 1 and not error.lines
+    assert len(warn.lines) == 1 and "duplicate stamp" in warn.lines[0], warn.lines
+
+
+def test_solver_rejects_frame_and_layout_mismatch(bag, scenario):
+    _, contents = bag
+    items = _inputs(contents)
+    reference = _reference(contents, scenario)
+    # Imu of cycle 50 with another frame id; a payload of the wrong layout at cycle 120.
+    other = stream_batches(
+        _window(reference, 49, 2), odom_topic=None, fix_topic=None, body_frame="other_imu"
+    )[0]
+    i50 = next(
+        i for i, (k, p) in enumerate(items) if k == "imu" and _cycle(scenario, _stamp_of(p)) == 50
+    )
+    items[i50] = ("imu", bytes(other.payloads[0]))
+    i120 = next(
+        i for i, (k, p) in enumerate(items) if k == "odom" and _cycle(scenario, _stamp_of(p)) == 120
+    )
+    items[i120] = ("odom", items[i120][1][:-8])
+    solver, warn, error = _solver(scenario)
+    got = _feed(solver, items)
+    assert any(
+        "Imu frame_id 'other_imu' differs from the Odometry child_frame_id" in e
+        for e in error.lines
+    ), error.lines
+    assert any("/reference/odom: rejected a message" in e for e in error.lines), error.lines
+    assert any("rejected, the solution restarts at cycle 51" in e for e in error.lines)
+    assert any("gap: stamp" in w and "(cycle 121)" in w for w in warn.lines), warn.lines
+    stamps = sorted({_cycle(scenario, _stamp_of(p)) for p in got["/variation/odom"]})
+    assert stamps[:49] == list(range(49)) and 50 not in stamps and 51 in stamps
+    assert 120 not in stamps and stamps[-1] == CYCLES - 1
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_stops_cleanly(sig, procs, ros_env, tmp_path):
+    """Waiting for input (none comes: private topic names), a signal ends the node with 0."""
+    deadline = time.monotonic() + TIMEOUT_S
+    prefix = f"/strapdown_test/variation_signal_{os.getpid()}"
+    node = _variation_node(
+        procs,
+        ros_env,
+        tmp_path,
+        "wait_for_subscribers:=0",
+        f"reference_imu_topic:={prefix}/imu",
+        f"reference_odom_topic:={prefix}/odom",
+        f"variation_imu_topic:={prefix}/vimu",
+        f"variation_odom_topic:={prefix}/vodom",
+        f"variation_fix_topic:={prefix}/vfix",
+        f"variation_reference_imu_topic:={prefix}/rimu",
+        f"variation_reference_odom_topic:={prefix}/rodom",
+    )
+    node.wait_for(r"subscribed to ", deadline)
+    node.proc.send_signal(sig)
+    assert node.wait(time.monotonic() + 15) == 0, node.describe()
+    assert "Traceback" not in node.output, node.describe()
+
+
+def test_solver_starts_afresh_when_the_input_restarts(bag, scenario):
+    """The same stream twice (a restarted trajectory_node): the output twice, identical."""
+    _, contents = bag
+    items = _inputs(contents)
+    solver, warn, error = _solver(scenario)
+    got = _feed(solver, items[: len(items) // 2] + items)
+    assert any("jumps back" in w and "the input restarted" in w for w in warn.lines), warn.lines
+    for topic in OUTPUTS:
+        want = [bytes(p) for p in contents.topics[topic].payloads]
+        assert got[topic][-len(want) :] == want, topic
+    assert solver.finished and not error.lines
