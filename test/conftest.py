@@ -72,3 +72,12 @@ def ros_env() -> dict[str, str]:
     env.update(ros_isolation_env(int(os.environ["ROS_DOMAIN_ID"])))
     env.setdefault("PYTHONUNBUFFERED", "1")
     return env
+
+
+@pytest.fixture
+def procs():
+    """Child processes started by a test (node_testing.Proc); killed at teardown if running."""
+    children: list = []
+    yield children
+    for child in children:
+        child.kill()

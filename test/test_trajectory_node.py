@@ -15,18 +15,18 @@ from __future__ import annotations
 import os
 import pickle
 import re
-import shutil
 import signal
 import subprocess
 import sys
 import time
-from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
+
+from node_testing import Proc, bitwise_equal, executable, padded  # noqa: E402
 
 from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.reader import read_bag  # noqa: E402
@@ -45,69 +45,12 @@ COUNTS = {"/reference/imu": 600, "/reference/odom": 601, "/reference/fix": 601, 
 TIMEOUT_S = 60.0
 
 
-def _executable(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    found = str(local) if local.exists() else shutil.which(name)
-    if not found:
-        pytest.skip(f"{name} is not installed (make setup)")
-    return found
-
-
-class Proc:
-    """A child process whose stdout/stderr go to files (no pipe can fill up)."""
-
-    def __init__(self, args: list[str], env: dict[str, str], log_dir: Path, name: str) -> None:
-        self.name = name
-        self.out_path = log_dir / f"{name}.out"
-        self.err_path = log_dir / f"{name}.err"
-        with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
-            self.proc = subprocess.Popen(
-                args, env=env, stdin=subprocess.DEVNULL, stdout=out, stderr=err, cwd=REPO
-            )
-
-    @property
-    def output(self) -> str:
-        return self.out_path.read_text() + self.err_path.read_text()
-
-    def wait_for(self, pattern: str, deadline: float) -> None:
-        """Block until the output matches ``pattern`` (regex); fail at ``deadline`` or exit."""
-        while not re.search(pattern, self.output):
-            if self.proc.poll() is not None and not re.search(pattern, self.output):
-                pytest.fail(f"{self.name} exited before {pattern!r}:\n{self.describe()}")
-            if time.monotonic() > deadline:
-                pytest.fail(f"timeout waiting for {pattern!r} from {self.name}:\n{self.describe()}")
-            time.sleep(0.05)
-
-    def wait(self, deadline: float) -> int:
-        try:
-            return self.proc.wait(timeout=max(deadline - time.monotonic(), 0.1))
-        except subprocess.TimeoutExpired:
-            pytest.fail(f"timeout waiting for {self.name} to exit:\n{self.describe()}")
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(timeout=10)
-
-    def describe(self) -> str:
-        return f"--- {self.name} (pid {self.proc.pid}, rc {self.proc.poll()})\n{self.output}"
-
-
-@pytest.fixture
-def procs():
-    """Children started by a test; killed at teardown if still running."""
-    children: list[Proc] = []
-    yield children
-    for child in children:
-        child.kill()
-
-
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
     """The bag of ``strapdown-sim generate`` for the scenario the node runs (with /clock)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
     cmd = [
-        _executable("strapdown-sim"),
+        executable("strapdown-sim"),
         "generate",
         str(SCENARIO),
         "--out",
@@ -128,7 +71,7 @@ def bag(tmp_path_factory):
 
 
 def _node_args(*params: str) -> list[str]:
-    args = [_executable("trajectory_node"), "--ros-args"]
+    args = [executable("trajectory_node"), "--ros-args"]
     for p in params:
         args += ["-p", p]
     return args
@@ -154,33 +97,6 @@ def _record_and_run(
     assert "Traceback" not in node.output, node.describe()
     with open(out, "rb") as f:
         return pickle.load(f), node
-
-
-def _padded(payload: bytes) -> bytes:
-    """``payload`` as a subscriber in another process receives it from Fast DDS.
-
-    RTPS submessages are 4-byte aligned and the reader takes the serialized payload's length
-    from the submessage, so a payload whose length is not a multiple of 4 (NavSatFix: 133
-    bytes) arrives with 1-3 zero bytes appended, whoever published it (rclpy's own serializer
-    too). The CDR content is unchanged.
-    """
-    return bytes(payload) + bytes(-len(payload) % 4)
-
-
-def _bitwise_equal(a, b) -> bool:
-    """Field containers equal bit for bit (dtype, shape and bytes of every array)."""
-    if type(a) is not type(b):
-        return False
-    for f in fields(a):
-        x, y = getattr(a, f.name), getattr(b, f.name)
-        if isinstance(x, str) or isinstance(y, str):
-            if x != y:
-                return False
-            continue
-        x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)
-        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
-            return False
-    return True
 
 
 def _check_rclpy_decoding(topic: str, payloads: list[bytes], want) -> None:
@@ -231,10 +147,10 @@ def _compare(recording: dict, bag, topics: list[str]) -> None:
         want = bag.topics[topic]
         assert len(got) == len(want.payloads), topic
         pairs = zip(got, want.payloads, strict=True)
-        first_bad = next((i for i, (g, w) in enumerate(pairs) if g != _padded(w)), None)
+        first_bad = next((i for i, (g, w) in enumerate(pairs) if g != padded(w)), None)
         assert first_bad is None, f"{topic}: payload {first_bad} differs from the bag"
         decoded = cdr.deserialize(want.msgtype, got)
-        assert _bitwise_equal(decoded, want.fields), topic
+        assert bitwise_equal(decoded, want.fields), topic
         _check_rclpy_decoding(topic, got, want.fields)
 
 

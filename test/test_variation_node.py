@@ -21,18 +21,18 @@ from __future__ import annotations
 import os
 import pickle
 import re
-import shutil
 import signal
 import subprocess
 import sys
 import time
-from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
+
+from node_testing import Proc, bitwise_equal, executable, padded  # noqa: E402
 
 from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.batches import Batch, merge_order, stream_batches  # noqa: E402
@@ -75,62 +75,6 @@ TIMEOUT_S = 60.0
 DROP, SWAP = 101, 250
 
 
-def _executable(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    found = str(local) if local.exists() else shutil.which(name)
-    if not found:
-        pytest.skip(f"{name} is not installed (make setup)")
-    return found
-
-
-class Proc:
-    """A child process whose stdout/stderr go to files (no pipe can fill up)."""
-
-    def __init__(self, args: list[str], env: dict[str, str], log_dir: Path, name: str) -> None:
-        self.name = name
-        self.out_path = log_dir / f"{name}.out"
-        self.err_path = log_dir / f"{name}.err"
-        with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
-            self.proc = subprocess.Popen(
-                args, env=env, stdin=subprocess.DEVNULL, stdout=out, stderr=err, cwd=REPO
-            )
-
-    @property
-    def output(self) -> str:
-        return self.out_path.read_text() + self.err_path.read_text()
-
-    def wait_for(self, pattern: str, deadline: float) -> None:
-        while not re.search(pattern, self.output):
-            if self.proc.poll() is not None and not re.search(pattern, self.output):
-                pytest.fail(f"{self.name} exited before {pattern!r}:\n{self.describe()}")
-            if time.monotonic() > deadline:
-                pytest.fail(f"timeout waiting for {pattern!r} from {self.name}:\n{self.describe()}")
-            time.sleep(0.05)
-
-    def wait(self, deadline: float) -> int:
-        try:
-            return self.proc.wait(timeout=max(deadline - time.monotonic(), 0.1))
-        except subprocess.TimeoutExpired:
-            pytest.fail(f"timeout waiting for {self.name} to exit:\n{self.describe()}")
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait(timeout=10)
-
-    def describe(self) -> str:
-        return f"--- {self.name} (pid {self.proc.pid}, rc {self.proc.poll()})\n{self.output}"
-
-
-@pytest.fixture
-def procs():
-    """Children started by a test; killed at teardown if still running."""
-    children: list[Proc] = []
-    yield children
-    for child in children:
-        child.kill()
-
-
 @pytest.fixture(scope="module")
 def scenario():
     return load_scenario(SCENARIO, [VARIATION], DURATION_S)
@@ -140,7 +84,7 @@ def scenario():
 def bag(tmp_path_factory):
     """``strapdown-sim generate`` of the scenario with the variation: (path, contents)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [_executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
+    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
     cmd += ["--duration", str(DURATION_S), "--set", VARIATION, "--quiet"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -159,7 +103,7 @@ def _params(*params: str) -> list[str]:
 
 
 def _variation_node(procs, env, tmp_path, *params: str) -> Proc:
-    args = [_executable("variation_node"), "--ros-args"]
+    args = [executable("variation_node"), "--ros-args"]
     args += _params(
         f"scenario:={SCENARIO}",
         f"overrides:=['{VARIATION}']",
@@ -180,27 +124,6 @@ def _recorder(procs, env, tmp_path, counts: dict[str, int], extra=()) -> tuple[P
     rec = Proc(args, env, tmp_path, "recorder")
     procs.append(rec)
     return rec, out
-
-
-def _padded(payload: bytes) -> bytes:
-    """Fast DDS delivers a payload whose length is not a multiple of 4 (NavSatFix, 133 bytes)
-    with 1-3 zero bytes appended (see test_trajectory_node.py); the CDR content is unchanged."""
-    return bytes(payload) + bytes(-len(payload) % 4)
-
-
-def _bitwise_equal(a, b) -> bool:
-    if type(a) is not type(b):
-        return False
-    for f in fields(a):
-        x, y = getattr(a, f.name), getattr(b, f.name)
-        if isinstance(x, str) or isinstance(y, str):
-            if x != y:
-                return False
-            continue
-        x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)
-        if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
-            return False
-    return True
 
 
 def _stamp_of(payload: bytes) -> int:
@@ -256,7 +179,7 @@ def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
     node = _variation_node(procs, ros_env, tmp_path)
     node.wait_for(r"subscribed to /reference/imu", deadline)
     traj = Proc(
-        [_executable("trajectory_node"), "--ros-args"]
+        [executable("trajectory_node"), "--ros-args"]
         + _params(
             f"scenario:={SCENARIO}",
             f"duration_s:={DURATION_S}",
@@ -280,11 +203,9 @@ def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
     for topic in OUTPUTS:
         got, want = recording["topics"][topic], contents.topics[topic]
         assert len(got) == len(want.payloads), topic
-        bad = [
-            i for i, (g, w) in enumerate(zip(got, want.payloads, strict=True)) if g != _padded(w)
-        ]
+        bad = [i for i, (g, w) in enumerate(zip(got, want.payloads, strict=True)) if g != padded(w)]
         assert not bad, f"{topic}: payloads {bad[:5]}... differ from the bag"
-        assert _bitwise_equal(cdr.deserialize(want.msgtype, got), want.fields), topic
+        assert bitwise_equal(cdr.deserialize(want.msgtype, got), want.fields), topic
     assert f"published {sum(counts[t] for t in OUTPUTS)} messages" in node.output
 
     # Latency: variation cycle m goes out when reference cycle m+1 or m+2 has arrived.
@@ -407,7 +328,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
             ]
             assert [_cycle(scenario, _stamp_of(p)) for p in got] == list(range(lo, last + 1))
             for p in got:
-                assert p == _padded(want[topic][_stamp_of(p)]), (k, topic, _stamp_of(p))
+                assert p == padded(want[topic][_stamp_of(p)]), (k, topic, _stamp_of(p))
         if k == 0:
             continue
         # The restarted run on its own obeys the exactness rule (SPEC §3).
@@ -476,7 +397,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
     ids=["missing", "no-variation", "method-3", "method-1", "lever-arm", "qos", "same-topic"],
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
-    args = [_executable("variation_node"), "--ros-args", *_params(*params)]
+    args = [executable("variation_node"), "--ros-args", *_params(*params)]
     proc = subprocess.run(args, env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO)
     output = proc.stdout + proc.stderr
     assert proc.returncode == 2, output
