@@ -19,6 +19,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -71,8 +72,9 @@ def build_trajectory(scenario: Scenario) -> Trajectory | None:
     if kind == "samples":
         from strapdown_ros.core.trajectory.samples import SamplesTrajectory
 
+        samples = odometry_samples(traj, scenario.base_dir) if "bag" in traj else None
         try:
-            return SamplesTrajectory.from_config(traj, scenario.base_dir)
+            return SamplesTrajectory.from_config(traj, scenario.base_dir, samples)
         except (ValueError, TypeError, KeyError, OSError) as exc:
             raise _wrap("trajectory", exc) from exc
     assert scenario.initial is not None
@@ -94,6 +96,47 @@ def build_trajectory(scenario: Scenario) -> Trajectory | None:
         _list(traj, "segments")
         return None
     raise ScenarioError("trajectory.kind", f"unknown kind {kind!r}")
+
+
+def odometry_samples(traj: dict[str, Any], base_dir: Path) -> Any:
+    """Samples of a ``samples`` trajectory from a bag's ``nav_msgs/Odometry`` topic.
+
+    Keys: ``bag`` (directory, relative to the scenario file) and ``topic`` (default
+    ``/reference/odom``). Per SPEC §4 the messages give ECEF position, body FLU attitude
+    relative to ECEF, and Earth-relative velocity and angular rate in body axes; they are
+    converted to FRD and passed to the Giribet fit (position, velocity, attitude, rate).
+    """
+    from strapdown_ros.bag.reader import BagReadError, read_bag
+    from strapdown_ros.core.trajectory.samples import samples_from_arrays
+    from strapdown_ros.messages import odometry_state
+
+    path = Path(traj["bag"])
+    if not path.is_absolute():
+        path = base_dir / path
+    topic = traj.get("topic", "/reference/odom")
+    try:
+        contents = read_bag(path, [topic])
+    except BagReadError as exc:
+        key = "trajectory.topic" if "no topic" in str(exc) else "trajectory.bag"
+        raise ScenarioError(key, str(exc)) from None
+    if topic not in contents.topics:
+        raise ScenarioError("trajectory.topic", f"{topic!r} is not in {path}")
+    if contents.topics[topic].msgtype != "nav_msgs/msg/Odometry":
+        raise ScenarioError(
+            "trajectory.topic", f"{topic!r} is {contents.topics[topic].msgtype}, not Odometry"
+        )
+    state = odometry_state(contents[topic])  # FRD body axes
+    t = (state.stamps_ns - state.stamps_ns[0]) * 1e-9
+    try:
+        return samples_from_arrays(
+            t,
+            r_ecef=state.r_e,
+            v_ecef=state.v_e,
+            c_b_e=state.c_b_e,
+            omega_eb_b=state.omega_eb_b,
+        )
+    except ValueError as exc:
+        raise ScenarioError("trajectory.bag", f"{path} {topic}: {exc}") from None
 
 
 def _section(kind: str) -> str:

@@ -359,3 +359,31 @@ def test_streamed_variation_equals_one_vectorized_run(monkeypatch):
     for k, b in enumerate(whole):
         joined = [bytes(p) for batches in pieces for p in batches[k].payloads]
         assert joined == [bytes(p) for p in b.payloads], b.topic
+
+
+def test_samples_kind_from_a_bag_odometry_topic(tmp_path):
+    """A generated bag's /reference/odom, decimated to 10 Hz, re-imported as `samples`."""
+    seg = write_scenario(tmp_path, "seg", SCENARIOS["segments"])
+    src = tmp_path / "src"
+    assert run_cli("generate", str(seg), "--out", str(src), "--set", "rate_hz=10").returncode == 0
+    doc = {
+        "rate_hz": 200,
+        "trajectory": {"kind": "samples", "bag": "src", "topic": "/reference/odom",
+                       "knots": 1.0, "degree": 5},
+    }  # fmt: skip
+    path = write_scenario(tmp_path, "from_bag", doc)
+    out = tmp_path / "bag"
+    proc = run_cli("generate", str(path), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    regenerated = bag_stream(out)
+    assert stream_residuals(regenerated).within_spec()
+    original = local_to_e0(build_trajectory(parse_scenario(SCENARIOS["segments"])).local_truth(
+        regenerated.t))  # fmt: skip
+    err = np.linalg.norm(regenerated.r_e0 - original.r_e0, axis=1)
+    tolerance = build_trajectory(load_scenario(path)).residuals()["position"]  # fit RMS (m)
+    assert tolerance < 0.05
+    assert np.sqrt(np.mean(err**2)) < 1.5 * tolerance, (np.sqrt(np.mean(err**2)), tolerance)
+    bad = write_scenario(tmp_path, "bad", {**doc, "trajectory": {**doc["trajectory"],
+                                                                 "topic": "/nope"}})  # fmt: skip
+    proc = run_cli("validate", str(bad))
+    assert proc.returncode == 2 and "trajectory.topic" in proc.stderr, proc.stderr

@@ -101,6 +101,8 @@ _WEIGHT_KEYS = ("position", "velocity", "acceleration", "attitude", "rate")
 _CONFIG_KEYS = (
     "kind",
     "file",
+    "bag",
+    "topic",
     "columns",
     "knots",
     "degree",
@@ -669,9 +671,11 @@ class SamplesTrajectory:
         return cls(load_samples_csv(path, columns=columns, rate_frame=rate_frame), options)
 
     @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], base_dir: str | Path) -> SamplesTrajectory:
+    def from_config(
+        cls, cfg: Mapping[str, Any], base_dir: str | Path, samples: Samples | None = None
+    ) -> SamplesTrajectory:
         """Same as the module function :func:`from_config`."""
-        return from_config(cfg, base_dir)
+        return from_config(cfg, base_dir, samples)
 
     # ----------------------------------------------------------------------------------------
     # Evaluation
@@ -918,7 +922,9 @@ def _breaks(value: Any, where: str) -> tuple[tuple[float, int], ...]:
     return tuple(out)
 
 
-def from_config(cfg: Mapping[str, Any], base_dir: str | Path) -> SamplesTrajectory:
+def from_config(
+    cfg: Mapping[str, Any], base_dir: str | Path, samples: Samples | None = None
+) -> SamplesTrajectory:
     """Build the trajectory of a scenario's ``trajectory`` mapping of kind ``samples``.
 
     Keys (all but ``file`` optional; ``knots``, ``degree``, ``continuity``, ``breaks`` take a
@@ -964,13 +970,18 @@ def from_config(cfg: Mapping[str, Any], base_dir: str | Path) -> SamplesTrajecto
         )
     if cfg.get("kind", "samples") != "samples":
         raise ValueError(f"trajectory.kind: expected 'samples', got {cfg.get('kind')!r}")
-    if "file" not in cfg:
-        raise ValueError("trajectory.file: missing (CSV path relative to the scenario file)")
-    path = Path(cfg["file"])
-    if not path.is_absolute():
-        path = Path(base_dir) / path
-    if not path.is_file():
-        raise ValueError(f"trajectory.file: {str(path)!r} does not exist")
+    path = Path()
+    if samples is None:
+        if "file" not in cfg:
+            raise ValueError(
+                "trajectory.file: missing (CSV path relative to the scenario file, or `bag` and "
+                "`topic` for an Odometry topic of a bag)"
+            )
+        path = Path(cfg["file"])
+        if not path.is_absolute():
+            path = Path(base_dir) / path
+        if not path.is_file():
+            raise ValueError(f"trajectory.file: {str(path)!r} does not exist")
     columns = cfg.get("columns")
     if columns is not None and not isinstance(columns, Mapping):
         raise ValueError("trajectory.columns: expected a mapping {canonical: header}")
@@ -1012,7 +1023,8 @@ def from_config(cfg: Mapping[str, Any], base_dir: str | Path) -> SamplesTrajecto
         q_step=None if q_step is None else float(q_step),
     )
     try:
-        samples = load_samples_csv(path, columns=columns, rate_frame=rate_frame)
+        if samples is None:
+            samples = load_samples_csv(path, columns=columns, rate_frame=rate_frame)
         return SamplesTrajectory(samples, opts)
     except ValueError as exc:
         raise ValueError(f"trajectory: {exc}") from None
