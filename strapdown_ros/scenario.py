@@ -411,6 +411,14 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
 
         try:
             validate_offsets(variation)
+            if variation.get("method", 2) not in (1, 2) or isinstance(
+                variation.get("method"), bool
+            ):
+                raise ValueError(f"variation.method: must be 1 or 2, got {variation['method']!r}")
+            if variation.get("gravity", "full") not in ("full", "first_order"):
+                raise ValueError(
+                    f"variation.gravity: must be full or first_order, got {variation['gravity']!r}"
+                )
         except ValueError as exc:
             head, sep, rest = str(exc).partition(": ")
             raise ScenarioError(head if sep else "variation", rest if sep else str(exc)) from None

@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
+from strapdown_ros.core.exact_update import g_c
 from strapdown_ros.core.rotations import (
     dcm_from_euler,
+    dcm_from_rotvec,
     orthonormality_error,
     rot_z,
     rotation_angle,
@@ -25,6 +27,7 @@ FILTERS = {
     "window20": LinearFilter.walking_window(20),
     "first_order": LinearFilter([0.2], [0.8]),
     "second_order": LinearFilter([0.1, 0.1, 0.1], [0.4, 0.3]),
+    "lead": LinearFilter([2.0, -1.0]),  # tau = -T: compensation delays the input by 1 cycle
 }
 
 
@@ -73,17 +76,20 @@ def test_steady_state_gamma_is_minus_tau_over_t_times_dbeta(name):
     dbeta = np.radians(20.0) * T * AXIS  # nominal Δβ; (D-2) extraction adds ~3e-17 rad noise
     np.testing.assert_allclose(terms.dbeta[m - 1], dbeta, rtol=0, atol=1e-16)  # [i] is m = i+1
     # filtered increments equal the input ones in steady state (D-3)
-    np.testing.assert_allclose(terms.dbeta_flt[m - 1], dbeta, rtol=0, atol=1e-16)
+    gain = np.abs(filt.a).sum() + np.abs(filt.b).sum()  # of the extraction noise
+    np.testing.assert_allclose(terms.dbeta_flt[m - 1], dbeta, rtol=0, atol=1e-16 * gain)
     # γ = -(τ_Flt / T) Δβ, (D-6)/(D-7); for the walking window τ_Flt = r_a T / 2 (D-8)
     cycles = filt.response_time(T) / T
-    np.testing.assert_allclose(terms.gamma[m], -cycles * dbeta, rtol=0, atol=1e-16 * (1 + cycles))
+    np.testing.assert_allclose(
+        terms.gamma[m], -cycles * dbeta, rtol=0, atol=1e-16 * (1 + abs(cycles))
+    )
     if name.startswith("window"):
         r_a = filt.a.size - 1
         np.testing.assert_allclose(terms.gamma[m], -r_a / 2 * dbeta, rtol=0, atol=1e-16 * (1 + r_a))
     # C_filt lags C by |Δβ|/T τ_Flt (text after (D-11))
     smooth = smooth_attitude_offset(c, filt)
     lag = rotation_angle(np.swapaxes(c[m], -1, -2) @ smooth[m])
-    assert lag == pytest.approx(np.linalg.norm(dbeta) / T * filt.response_time(T), rel=1e-9)
+    assert lag == pytest.approx(np.linalg.norm(dbeta) / T * abs(filt.response_time(T)), rel=1e-9)
 
 
 @pytest.mark.parametrize("name", sorted(FILTERS))
@@ -146,6 +152,10 @@ def test_lag_compensation_removes_the_steady_lag():
     terms = smoothing_terms(c, FILTERS["first_order"], lag_compensation=True)
     assert terms.shift == 4
     assert np.max(np.abs(terms.gamma[500:900])) <= 1e-15
+    # lead filter (tau = -T): the input is delayed by one cycle, again no steady error
+    terms = smoothing_terms(c, FILTERS["lead"], lag_compensation=True)
+    assert terms.shift == -1
+    assert np.max(np.abs(terms.gamma[100:900])) <= 1e-15
     # every case returns to the specified offset once at rest
     for filt in FILTERS.values():
         g = smoothing_terms(c, filt, lag_compensation=True).gamma
@@ -160,3 +170,8 @@ def test_lag_compensation_anticipates_a_motion_at_the_start():
     np.testing.assert_allclose(terms.gamma[0], sum(range(1, 11)) / 21 * dbeta, rtol=0, atol=1e-16)
     assert np.max(np.abs(terms.gamma[20:280])) <= 1e-15
     assert np.all(terms.gamma[-(300 - 10) :] == 0.0)
+
+
+def test_g_c_form_is_the_exact_update_one():
+    gamma = np.random.default_rng(0).normal(size=(1000, 3)) * np.logspace(-9, 0, 1000)[:, None]
+    assert np.array_equal(dcm_from_rotvec(gamma), g_c(gamma))  # (D-9) is the eq. (2) G_C

@@ -143,3 +143,11 @@ def test_load_from_file_with_overrides_and_duration(tmp_path):
     with pytest.raises(ScenarioError) as info:
         load_scenario(path)
     assert info.value.key == "rate_hz"
+
+
+def test_variation_method_and_gravity_are_checked_at_load():
+    for section, key in (({"method": 3}, "variation.method"),
+                         ({"gravity": "egm"}, "variation.gravity"),
+                         ({"lever_arm_m": [1, 2]}, "variation.lever_arm_m")):  # fmt: skip
+        assert error_of(with_(variation=section)).key == key
+    assert parse_scenario(with_(variation={"method": 1, "lever_arm_m": [1, 0, 0]})).variation
