@@ -255,6 +255,7 @@ class _VariationStreamer:
         self.imu: ImuFields | None = None
         self.odom: OdometryFields | None = None
         self.emitted = -1  # last variation cycle published (even), -1: none yet
+        self.base = 0  # cycle of self.odom's first row (self.imu's first row is cycle base + 1)
         rec = scenario.recording
         self.imu_topic = rec.topics["reference_imu"]
         self.odom_topic = rec.topics["reference_odom"]
@@ -267,15 +268,16 @@ class _VariationStreamer:
         odom = cdr.deserialize(odom_b.msgtype, odom_b.payloads)
         self.imu = imu if self.imu is None else self.imu.append(imu)  # type: ignore[union-attr]
         self.odom = odom if self.odom is None else self.odom.append(odom)  # type: ignore[union-attr]
-        avail = len(self.odom) - 1  # reference cycles 0..avail
+        avail = self.base + len(self.odom) - 1  # reference cycles base..avail are held
         last = (avail - 1) - (avail - 1) % 2  # last even cycle with its look-ahead sample
         if last < 2 or last <= self.emitted:
             return []
         lead = 0 if self.emitted < 0 else 1
         a = 0 if lead == 0 else self.emitted - 1
+        b0 = self.base
         window = stream_from_messages(
-            self.imu.rows(a, last + 1),  # type: ignore[union-attr]
-            self.odom.rows(a, last + 2),
+            self.imu.rows(a - b0, last + 1 - b0),  # type: ignore[union-attr]
+            self.odom.rows(a - b0, last + 2 - b0),
             self.scenario.gravity_model,
             e0_epoch_ns=self.scenario.start_time_ns,
         )
@@ -294,6 +296,11 @@ class _VariationStreamer:
         if lead:
             out = [_drop_up_to(b, variation.t0_ns) for b in out]  # truth already published
         self.emitted = last
+        # keep only what the next window (from cycle last - 1) needs: memory stays bounded
+        keep = last - 1 - self.base
+        self.odom = self.odom.rows(keep, len(self.odom))
+        self.imu = self.imu.rows(keep, len(self.imu))  # type: ignore[union-attr]
+        self.base = last - 1
         return out
 
 
