@@ -9,9 +9,13 @@ from __future__ import annotations
 import importlib
 import re
 import time
+import traceback
+from collections.abc import Callable
 from typing import Any
 
+import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -178,3 +182,38 @@ class Pacer:
             time.sleep(remaining)
             remaining = deadline - time.monotonic()
         self.max_lateness_s = max(self.max_lateness_s, -remaining)
+
+
+def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None = None) -> int:
+    """Entry point shared by the nodes: init, build, ``node.run(executor)``, clean shutdown.
+
+    Exit status: 0 done or stopped by SIGINT/SIGTERM, 1 failure while running, 2 invalid
+    parameter or scenario (the message names it).
+    """
+    from strapdown_ros.scenario import ScenarioError
+
+    rclpy.init(args=args)
+    logger = rclpy.logging.get_logger(name)
+    node = None
+    try:
+        node = node_factory()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        return node.run(executor)
+    except ParameterError as exc:
+        logger.error(f"invalid parameter: {exc}")
+        return EXIT_INVALID
+    except ScenarioError as exc:
+        logger.error(f"invalid scenario: {exc}")
+        return EXIT_INVALID
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return EXIT_OK
+    except Exception as exc:
+        if not rclpy.ok():  # a signal shut the context down under a publish or a wait
+            return EXIT_OK
+        logger.error(f"failed: {exc}\n{traceback.format_exc()}")
+        return EXIT_FAILURE
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

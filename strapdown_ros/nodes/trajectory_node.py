@@ -18,7 +18,6 @@ import dataclasses
 import queue
 import threading
 import time
-import traceback
 from collections.abc import Callable, Iterator
 
 import rclpy
@@ -31,7 +30,6 @@ from strapdown_ros.core.stream import Stream
 from strapdown_ros.dataset import reference_batch_chunks
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
-    EXIT_INVALID,
     EXIT_OK,
     Pacer,
     ParameterError,
@@ -42,9 +40,10 @@ from strapdown_ros.nodes._common import (
     declare_string_array,
     message_class,
     qos_from_parameters,
+    run_node,
 )
 from strapdown_ros.reference import build_trajectory, output_cycles
-from strapdown_ros.scenario import ScenarioError, load_scenario
+from strapdown_ros.scenario import load_scenario
 
 NODE_NAME = "trajectory_node"
 TIME_SOURCES = ("sim", "wall")
@@ -321,29 +320,5 @@ def _parameter_of(topic: str, topics: dict[str, str]) -> str:
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run the node; return the exit status."""
-    rclpy.init(args=args)
-    logger = rclpy.logging.get_logger(NODE_NAME)
-    node: TrajectoryNode | None = None
-    try:
-        node = TrajectoryNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        return node.run(executor)
-    except ParameterError as exc:
-        logger.error(f"invalid parameter: {exc}")
-        return EXIT_INVALID
-    except ScenarioError as exc:
-        logger.error(f"invalid scenario: {exc}")
-        return EXIT_INVALID
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return EXIT_OK
-    except Exception as exc:
-        if not rclpy.ok():  # a signal shut the context down under a publish or a wait
-            return EXIT_OK
-        logger.error(f"failed: {exc}\n{traceback.format_exc()}")
-        return EXIT_FAILURE
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
+    return run_node(TrajectoryNode, NODE_NAME, args)

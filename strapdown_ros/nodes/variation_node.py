@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -43,7 +42,6 @@ from strapdown_ros.dataset import scenario_offsets, variation_batches, variation
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
-    EXIT_INVALID,
     EXIT_OK,
     ParameterError,
     declare_bool,
@@ -53,6 +51,7 @@ from strapdown_ros.nodes._common import (
     declare_string_array,
     message_class,
     qos_from_parameters,
+    run_node,
 )
 from strapdown_ros.reference import build_trajectory, output_cycles
 from strapdown_ros.scenario import Scenario, ScenarioError, load_scenario
@@ -669,29 +668,5 @@ def _check_settings(scenario: Scenario) -> tuple[int, str]:
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run the node; return the exit status."""
-    rclpy.init(args=args)
-    logger = rclpy.logging.get_logger(NODE_NAME)
-    node: VariationNode | None = None
-    try:
-        node = VariationNode()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        return node.run(executor)
-    except ParameterError as exc:
-        logger.error(f"invalid parameter: {exc}")
-        return EXIT_INVALID
-    except ScenarioError as exc:
-        logger.error(f"invalid scenario: {exc}")
-        return EXIT_INVALID
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return EXIT_OK
-    except Exception as exc:
-        if not rclpy.ok():
-            return EXIT_OK
-        logger.error(f"failed: {exc}\n{traceback.format_exc()}")
-        return EXIT_FAILURE
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
+    return run_node(VariationNode, NODE_NAME, args)
