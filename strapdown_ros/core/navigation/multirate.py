@@ -38,7 +38,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from strapdown_ros.core.earth import A_WGS84, F_WGS84, OMEGA_IE, radii
-from strapdown_ros.core.gravity import gravity_ned
+from strapdown_ros.core.gravity import GRAVITY_MODELS, gravity_ned
+from strapdown_ros.core.navigation import _kernels
 from strapdown_ros.core.navigation.state import NavState
 from strapdown_ros.core.rotations import dcm_from_quat
 
@@ -169,6 +170,7 @@ def navigate_multirate(
     normalize: bool = True,
     table1_radii: bool = False,
     mode: str = "paper",
+    engine: str | None = None,
 ) -> NavSolution:
     """Run the multirate b–l split navigator of Waldmann Table 1 (``paper`` mode).
 
@@ -193,6 +195,11 @@ def navigate_multirate(
         Use Table 1's first-order ``R_N``, ``R_E`` instead of the exact WGS-84 radii.
     mode : str
         ``"paper"`` (Table 1 and eq. (33) literally, first order); no other mode yet.
+    engine : str or None
+        ``"numba"``: all cycles in the compiled kernel
+        (:func:`strapdown_ros.core.navigation._kernels.multirate_kernel`); ``"python"``: the
+        per-cycle Python loop below. ``None`` (default): ``"numba"`` if numba is importable,
+        else ``"python"``. The two agree to rounding (~1e-13 relative).
 
     Returns
     -------
@@ -203,6 +210,14 @@ def navigate_multirate(
         raise ValueError(f"unknown mode {mode!r}; available: 'paper'")
     if p < 1:
         raise ValueError(f"P must be >= 1, got P={p}")
+    if engine is None:
+        engine = "numba" if _kernels.HAVE_NUMBA else "python"
+    if engine not in ("numba", "python"):
+        raise ValueError(f"unknown engine {engine!r}; available: 'numba', 'python'")
+    if engine == "numba" and not _kernels.HAVE_NUMBA:
+        raise ImportError("engine='numba' requires numba")
+    if gravity_model not in GRAVITY_MODELS:
+        raise ValueError(f"unknown gravity model {gravity_model!r}")
     da, dvv = _check_increments(dalpha, dv, n)
     cycles = da.shape[0] // n
     t_nav = n * t_gyr
@@ -212,10 +227,18 @@ def navigate_multirate(
     out_pos = np.empty((cycles + 1, 3))
     out_v = np.empty((cycles + 1, 3))
     out_q = np.empty((cycles + 1, 4))
-    lat, lon, alt = initial.lat, initial.lon, initial.alt
+    lat, lon, alt = float(initial.lat), float(initial.lon), float(initial.alt)
     u = np.asarray(initial.v_ned, dtype=np.float64).copy()
     q = np.asarray(initial.q_b_n, dtype=np.float64).copy()
     out_pos[0], out_v[0], out_q[0] = (lat, lon, alt), u, q
+
+    if engine == "numba":
+        _kernels.multirate_kernel(
+            lat, lon, alt, u, q, np.ascontiguousarray(da), np.ascontiguousarray(dvv),
+            float(t_gyr), int(n), int(p), _kernels.GRAVITY_CODES[gravity_model],
+            bool(normalize), bool(table1_radii), out_pos, out_v, out_q,
+        )  # fmt: skip
+        return NavSolution(out_t, out_pos[:, 0], out_pos[:, 1], out_pos[:, 2], out_v, out_q, n)
 
     for j in range(cycles):
         lat_dot, lon_dot, w_il, w_cor = _rates(lat, alt, u, table1_radii)
