@@ -50,8 +50,8 @@ GRAVITY_CODES = {"j2": 0, "spherical": 1}
 def fast_cycle_kernel(q, dalpha, dv, start, n, lx, ly, lz, normalize, q_out, v_out):
     """Eqs. (19) and (33) over increments ``start .. start+n-1`` (``lx, ly, lz = ½ Δφ_l``).
 
-    Same arithmetic as :func:`~strapdown_ros.core.navigation.multirate.fast_cycle`. Writes
-    ``q_out`` (4,) and ``v_out`` (3,); ``q_out`` may alias ``q``.
+    The one implementation of the fast loop (``multirate.fast_cycle`` calls its plain-Python
+    form). Writes ``q_out`` (4,) and ``v_out`` (3,); ``q_out`` may alias ``q``.
     """
     w, x, y, z = q[0], q[1], q[2], q[3]
     vx = 0.0

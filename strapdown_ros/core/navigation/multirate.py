@@ -80,7 +80,8 @@ def fast_cycle(
 ) -> tuple[Array, Array]:
     """One ``T_nav`` cycle of the fast boundary layer: eqs. (19) and (33) over N increments.
 
-    Written with scalar arithmetic only, so that it can be compiled with numba unchanged.
+    Runs the plain-Python form of :func:`~strapdown_ros.core.navigation._kernels.fast_cycle_kernel`
+    (the scalar loop the compiled engine uses).
 
     Parameters
     ----------
@@ -100,27 +101,18 @@ def fast_cycle(
     v_fb : array (3,)
         Thrust velocity ``V_f,b`` at the end of the cycle (from ``V_f,b = 0``), body axes, m/s.
     """
-    w, x, y, z = float(q[0]), float(q[1]), float(q[2]), float(q[3])
-    lx, ly, lz = 0.5 * float(dphi_l[0]), 0.5 * float(dphi_l[1]), 0.5 * float(dphi_l[2])
-    vx = vy = vz = 0.0
-    for k in range(dalpha.shape[0]):
-        ax, ay, az = float(dalpha[k, 0]), float(dalpha[k, 1]), float(dalpha[k, 2])
-        # (19): V <- V - Δφ × V + Δβ.
-        cx = ay * vz - az * vy
-        cy = az * vx - ax * vz
-        cz = ax * vy - ay * vx
-        vx, vy, vz = vx - cx + float(dv[k, 0]), vy - cy + float(dv[k, 1]), vz - cz + float(dv[k, 2])
-        # (33): q <- q + ½ q ⊗ (0, Δφ_b) - ½ (0, Δφ_l) ⊗ q.
-        bx, by, bz = 0.5 * ax, 0.5 * ay, 0.5 * az
-        dw = -(x * bx + y * by + z * bz) + (lx * x + ly * y + lz * z)
-        dx = w * bx + (y * bz - z * by) - (w * lx + (ly * z - lz * y))
-        dy = w * by + (z * bx - x * bz) - (w * ly + (lz * x - lx * z))
-        dz = w * bz + (x * by - y * bx) - (w * lz + (lx * y - ly * x))
-        w, x, y, z = w + dw, x + dx, y + dy, z + dz
-        if normalize:
-            s = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
-            w, x, y, z = w * s, x * s, y * s, z * s
-    return np.array([w, x, y, z]), np.array([vx, vy, vz])
+    # One implementation of the loop: the kernel's plain-Python form (numba keeps it as
+    # ``py_func``); the compiled engine runs the same code in ``_kernels.multirate_kernel``.
+    kernel = getattr(_kernels.fast_cycle_kernel, "py_func", _kernels.fast_cycle_kernel)
+    q_out = np.empty(4)
+    v_out = np.empty(3)
+    half = 0.5 * np.asarray(dphi_l, dtype=np.float64)
+    da = np.asarray(dalpha, dtype=np.float64)
+    dvv = np.asarray(dv, dtype=np.float64)
+    hx, hy, hz = (float(h) for h in half)
+    kernel(np.asarray(q, dtype=np.float64), da, dvv, 0, da.shape[0], hx, hy, hz, bool(normalize),
+           q_out, v_out)  # fmt: skip
+    return q_out, v_out
 
 
 def _radii(lat: float, table1: bool) -> tuple[float, float]:
