@@ -217,3 +217,26 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def wait_for_subscriptions(
+    node: Node, pubs: list[Any], wanted: int, timeout_s: float, spin: Callable[[float], None]
+) -> bool:
+    """Spin until every publisher in ``pubs`` has ``wanted`` matched subscriptions.
+
+    Returns False (after logging which topics are short) when ``timeout_s`` passes first.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        missing = [p for p in pubs if p.get_subscription_count() < wanted]
+        if not missing:
+            waited = time.monotonic() - deadline + timeout_s
+            node.get_logger().info(f"subscriptions matched after {waited:.3f} s")
+            return True
+        if time.monotonic() > deadline:
+            node.get_logger().error(
+                f"timeout after {timeout_s:g} s waiting for {wanted} subscription(s) on "
+                + ", ".join(f"{p.topic_name} (has {p.get_subscription_count()})" for p in missing)
+            )
+            return False
+        spin(0.02)

@@ -41,6 +41,7 @@ from strapdown_ros.nodes._common import (
     message_class,
     qos_from_parameters,
     run_node,
+    wait_for_subscriptions,
 )
 from strapdown_ros.reference import build_trajectory, output_cycles
 from strapdown_ros.scenario import load_scenario
@@ -254,23 +255,7 @@ class TrajectoryNode(Node):
             f"waiting for {wanted} subscription(s) on {', '.join(self._wait_topics)} "
             f"(timeout {self.wait_timeout_s:g} s)"
         )
-        deadline = time.monotonic() + self.wait_timeout_s
-        while True:
-            missing = [p for p in pubs if p.get_subscription_count() < wanted]
-            if not missing:
-                waited = time.monotonic() - deadline + self.wait_timeout_s
-                self.get_logger().info(f"subscriptions matched after {waited:.3f} s")
-                return True
-            if time.monotonic() > deadline:
-                self.get_logger().error(
-                    f"timeout after {self.wait_timeout_s:g} s waiting for {wanted} "
-                    "subscription(s) on "
-                    + ", ".join(
-                        f"{p.topic_name} (has {p.get_subscription_count()})" for p in missing
-                    )
-                )
-                return False
-            spin(0.02)
+        return wait_for_subscriptions(self, pubs, wanted, self.wait_timeout_s, spin)
 
     def _wait_acked(self, pub, timeout_s: float) -> bool:
         """Wait (in short steps, so that a signal is noticed) until ``pub``'s data is acked."""

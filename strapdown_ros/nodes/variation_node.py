@@ -52,6 +52,7 @@ from strapdown_ros.nodes._common import (
     message_class,
     qos_from_parameters,
     run_node,
+    wait_for_subscriptions,
 )
 from strapdown_ros.reference import build_trajectory, output_cycles
 from strapdown_ros.scenario import Scenario, ScenarioError, load_scenario
@@ -598,21 +599,7 @@ class VariationNode(Node):
             f"waiting for {wanted} subscription(s) on every output topic "
             f"(timeout {self.wait_timeout_s:g} s)"
         )
-        deadline = time.monotonic() + self.wait_timeout_s
-        while True:
-            missing = [p for p in pubs if p.get_subscription_count() < wanted]
-            if not missing:
-                return True
-            if time.monotonic() > deadline:
-                self.get_logger().error(
-                    f"timeout after {self.wait_timeout_s:g} s waiting for {wanted} "
-                    "subscription(s) on "
-                    + ", ".join(
-                        f"{p.topic_name} (has {p.get_subscription_count()})" for p in missing
-                    )
-                )
-                return False
-            spin(0.02)
+        return wait_for_subscriptions(self, pubs, wanted, self.wait_timeout_s, spin)
 
     def _drain(self, spin: Callable[[float], None]) -> None:
         """Let the subscribers receive everything: acknowledgements, then a grace period."""
