@@ -108,6 +108,7 @@ def test_kernel_python_fallback_function_agrees(default_ref: Stream) -> None:
     _kernels.multirate_kernel.py_func(
         st.lat, st.lon, st.alt, np.asarray(st.v_ned, float), np.asarray(st.q_b_n, float),
         default_ref.dalpha[:m], default_ref.dv[:m], 0.005, 10, 2, 0, True, False, pos, vel, quat,
+        False, 0.0, 0.0, np.zeros(40),
     )  # fmt: skip
     np.testing.assert_allclose(vel, nb.v_ned, rtol=0, atol=1e-12)
     np.testing.assert_allclose(quat, nb.q_b_n, rtol=0, atol=1e-15)

@@ -130,7 +130,7 @@ def test_bad_arguments_rejected(static_ref: Stream) -> None:
     with pytest.raises(ValueError):
         navigate_multirate(st, static_ref.dalpha, static_ref.dv, 0.005, 1, 0)
     with pytest.raises(ValueError, match="mode"):
-        navigate_multirate(st, static_ref.dalpha, static_ref.dv, 0.005, 1, 1, mode="exact")
+        navigate_multirate(st, static_ref.dalpha, static_ref.dv, 0.005, 1, 1, mode="rk4")
     with pytest.raises(ValueError):
         navigate_simultaneous(st, static_ref.dalpha, static_ref.dv, 0.005, 0)
 

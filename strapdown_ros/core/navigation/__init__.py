@@ -7,7 +7,11 @@
 """
 
 from strapdown_ros.core.navigation.multirate import (
+    MODES,
+    MultirateNavigator,
     NavSolution,
+    SimultaneousNavigator,
+    VerticalDamping,
     fast_cycle,
     navigate_multirate,
     navigate_simultaneous,
@@ -15,7 +19,11 @@ from strapdown_ros.core.navigation.multirate import (
 from strapdown_ros.core.navigation.state import NavState, state_from_stream, truth_navigation
 
 __all__ = [
+    "MODES",
+    "MultirateNavigator",
     "NavSolution",
+    "SimultaneousNavigator",
+    "VerticalDamping",
     "NavState",
     "fast_cycle",
     "navigate_multirate",
