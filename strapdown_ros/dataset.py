@@ -19,14 +19,20 @@ from pathlib import Path
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
+from strapdown_ros.bag.batches import Batch, batch, clock_batch, stream_batches
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.trajectory.base import Trajectory
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
-from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
+from strapdown_ros.messages import (
+    ImuFields,
+    OdometryFields,
+    imu_increments,
+    odometry_state,
+    stream_from_messages,
+)
 from strapdown_ros.reference import (
     build_trajectory,
     generate_reference_chunks,
@@ -72,6 +78,7 @@ class DatasetSummary:
     duration_s: float
     topics: dict[str, int] = field(default_factory=dict)
     residuals: dict[str, Residuals] = field(default_factory=dict)
+    navigation: dict[str, float] = field(default_factory=dict)
     elapsed_s: float = 0.0
 
     def format(self) -> str:
@@ -91,6 +98,12 @@ class DatasetSummary:
             lines.append(
                 f"max one-step residual ({name}): attitude {res.max_attitude:.2e} rad, "
                 f"velocity {res.max_velocity:.2e} m/s, position {res.max_position:.2e} m [{ok}]"
+            )
+        if self.navigation:
+            nav = self.navigation
+            lines.append(
+                f"navigator error at the end: horizontal {nav['horizontal_m']:.3e} m, vertical "
+                f"{nav['vertical_m']:.3e} m (max horizontal {nav['max_horizontal_m']:.3e} m)"
             )
         return "\n".join(lines)
 
@@ -239,6 +252,71 @@ class _Producer:
         self._queue.close()
 
 
+class _NavigatorStreamer:
+    """The scenario's navigator fed piece by piece with the decoded messages of its input
+    stream (as ``navigator_node`` is), returning the ``/navigator/*`` batches now complete."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        from strapdown_ros.navigator import OUTPUT_TOPICS, navigator_settings
+
+        self.scenario = scenario
+        self.settings = navigator_settings(scenario)
+        self.topics = {k: scenario.recording.topics[v] for k, v in OUTPUT_TOPICS.items()}
+        self.run: object = None
+        self.final_errors: dict[str, float] = {}
+
+    def feed(self, batches: list[Batch]) -> list[Batch]:
+        """Take one piece's batches; return the navigator batches now computable."""
+        from strapdown_ros.navigator import (
+            NavigatorRun,
+            initial_state_from_scenario,
+            initial_state_from_truth,
+        )
+
+        st = self.settings
+        by_topic = {b.topic: b for b in batches}
+        truth = None
+        if st.truth_topic and st.truth_topic in by_topic and by_topic[st.truth_topic].payloads:
+            b = by_topic[st.truth_topic]
+            truth = odometry_state(cdr.deserialize(b.msgtype, b.payloads))
+        if self.run is None:
+            period = self.scenario.period_ns
+            if st.initialization == "truth":
+                if truth is None:
+                    return []
+                initial = initial_state_from_truth(truth, 0, st)
+                start, omega = int(truth.stamps_ns[0]), truth.omega_eb_b[0]
+            else:
+                assert self.scenario.initial is not None
+                initial = initial_state_from_scenario(self.scenario.initial.as_dict(), st)
+                start, omega = self.scenario.start_time_ns, None
+            self.run = NavigatorRun(
+                st, start, period, initial, bool(st.truth_topic), omega,
+                self.scenario.recording.frames["earth"],
+            )  # fmt: skip
+        run: NavigatorRun = self.run  # type: ignore[assignment]
+        if truth is not None:
+            run.add_truth(truth)
+        if st.imu_topic in by_topic and by_topic[st.imu_topic].payloads:
+            b = by_topic[st.imu_topic]
+            inc = imu_increments(cdr.deserialize(b.msgtype, b.payloads), self.scenario.period_ns)
+            run.add_imu(inc.stamps_ns, inc.dalpha, inc.dv)
+        out = run.outputs()
+        if out is None:
+            return []
+        if out.error_position is not None:
+            dr = np.asarray(out.error_position.vector)
+            self.final_errors = {
+                "horizontal_m": float(np.hypot(dr[-1, 0], dr[-1, 1])),
+                "vertical_m": float(abs(dr[-1, 2])),
+                "max_horizontal_m": max(
+                    self.final_errors.get("max_horizontal_m", 0.0),
+                    float(np.hypot(dr[:, 0], dr[:, 1]).max()),
+                ),
+            }
+        return [batch(self.topics[k], f) for k, f in out.items()]
+
+
 class _VariationStreamer:
     """Variation and regenerated reference computed piece by piece as the reference arrives.
 
@@ -337,19 +415,25 @@ def generate_dataset(
 
     def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
         streamer = None if scenario.variation is None else _VariationStreamer(scenario, total)
+        navigator = None if scenario.navigator is None else _NavigatorStreamer(scenario)
         for piece, batches in reference_batch_chunks(scenario, trajectory):
             res = {"reference": stream_residuals(piece)}
             if streamer is not None:
                 batches = batches + streamer.feed(batches, res)
-            yield piece.cycles, res, batches
+            nav_errors: dict[str, float] = {}
+            if navigator is not None:
+                batches = batches + navigator.feed(batches)
+                nav_errors = navigator.final_errors
+            yield piece.cycles, res, batches, nav_errors
 
     producer = _Producer(pieces())
     done = 0
     parts: dict[str, list[Residuals]] = {}
     try:
         with BagWriter(out, storage=storage, force=force) as writer:
-            for cycles, res, batches in producer:  # type: ignore[misc]
+            for cycles, res, batches, nav_errors in producer:  # type: ignore[misc]
                 writer.write_batches(batches)
+                summary.navigation = nav_errors
                 for name, r in res.items():
                     parts.setdefault(name, []).append(r)
                 done += cycles

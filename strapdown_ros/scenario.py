@@ -422,6 +422,17 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
         except ValueError as exc:
             head, sep, rest = str(exc).partition(": ")
             raise ScenarioError(head if sep else "variation", rest if sep else str(exc)) from None
+    recording = _parse_recording(doc.get("recording"))
+    navigator = section("navigator")
+    if navigator is not None:
+        from strapdown_ros.navigator import parse_navigator
+
+        parse_navigator(
+            navigator,
+            recording.topics,
+            gravity,
+            {"variation": variation, "imu_errors": section("imu_errors")},
+        )
     return Scenario(
         path=path,
         name=name,
@@ -433,9 +444,9 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
         initial=initial,
         trajectory=trajectory,
         variation=variation,
-        navigator=section("navigator"),
+        navigator=navigator,
         imu_errors=section("imu_errors"),
-        recording=_parse_recording(doc.get("recording")),
+        recording=recording,
         raw=copy.deepcopy(dict(doc)),
     )
 

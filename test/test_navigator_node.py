@@ -1,0 +1,301 @@
+"""The navigator on messages: ``generate``'s ``/navigator/*`` streams, the streaming solver and
+``navigator_node`` as a process between ``trajectory_node``/``variation_node`` and a recorder.
+
+1. ``generate`` with the default ``navigator`` section writes the five navigator topics; their
+   values agree with an independent offline computation from the bag's own variation messages
+   (``stream_from_messages`` → core navigator → ``navigation_errors`` on the E0 truth).
+2. :class:`NavigatorSolver` fed the bag's payloads one at a time (live order) publishes exactly
+   the bag's payloads; with a dropped and a swapped IMU message it logs them, never integrates
+   across the gap, and restarts from the truth.
+3. trajectory_node → variation_node → navigator_node → recorder over real DDS: message for
+   message the same payloads as ``generate`` (the acceptance test of issue 5).
+"""
+
+from __future__ import annotations
+
+import pickle
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
+from strapdown_ros.core.navigation.errors import navigation_errors
+from strapdown_ros.messages import stream_from_messages
+from strapdown_ros.navigator import navigator_settings
+from strapdown_ros.scenario import load_scenario
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+HELPERS = Path(__file__).resolve().parent / "ros_helpers"
+DURATION_S = 3.0
+NAV_TOPICS = {
+    "/navigator/odom": cdr.ODOMETRY,
+    "/navigator/fix": cdr.NAVSATFIX,
+    "/navigator/error/position": cdr.VECTOR3_STAMPED,
+    "/navigator/error/velocity": cdr.VECTOR3_STAMPED,
+    "/navigator/error/attitude": cdr.VECTOR3_STAMPED,
+}
+TIMEOUT_S = 90.0
+
+
+def _exe(name: str) -> str:
+    local = Path(sys.executable).parent / name
+    if not local.exists():
+        pytest.skip(f"{name} is not installed (make setup)")
+    return str(local)
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario(SCENARIO, [], DURATION_S)
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    out = tmp_path_factory.mktemp("generate") / "bag"
+    cmd = [_exe("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
+    cmd += ["--duration", str(DURATION_S), "--quiet"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return out, read_bag(out, raw=True)
+
+
+def _variation_stream(contents, scenario):
+    imu, odom = contents.topics["/variation/imu"], contents.topics["/variation/odom"]
+    return stream_from_messages(
+        imu.fields, odom.fields, scenario.gravity_model, e0_epoch_ns=scenario.start_time_ns
+    )
+
+
+def test_generate_writes_navigator_streams(bag, scenario) -> None:
+    """Counts, stamps and values against an independent offline computation."""
+    _, contents = bag
+    settings = navigator_settings(scenario)
+    assert (settings.algorithm, settings.mode, settings.imu_topic) == (
+        "multirate",
+        "exact",
+        "/variation/imu",
+    )
+    stream = _variation_stream(contents, scenario)
+    n = settings.n
+    cycles = stream.cycles // n
+    for topic in NAV_TOPICS:
+        data = contents.topics[topic]
+        assert data.msgtype == NAV_TOPICS[topic]
+        assert len(data.payloads) == cycles + 1, topic
+        expected = scenario.start_time_ns + np.arange(cycles + 1) * n * scenario.period_ns
+        np.testing.assert_array_equal(np.asarray(data.fields.stamps_ns), expected)
+    sol = navigate_multirate(
+        state_from_stream(stream), stream.dalpha, stream.dv, stream.period, n, settings.p,
+        mode="exact",
+    )  # fmt: skip
+    err = navigation_errors(sol, stream)
+    pos = np.asarray(contents.topics["/navigator/error/position"].fields.vector)
+    vel = np.asarray(contents.topics["/navigator/error/velocity"].fields.vector)
+    att = np.asarray(contents.topics["/navigator/error/attitude"].fields.vector)
+    # Both are at rounding level (the initial state goes through the Odometry quaternion).
+    np.testing.assert_allclose(pos, err.position_ned, atol=2e-8)
+    np.testing.assert_allclose(vel, err.velocity_ned, atol=1e-10)
+    np.testing.assert_allclose(att, err.attitude_young, atol=1e-13)
+    assert np.abs(pos).max() < 1e-6
+    fix = contents.topics["/navigator/fix"].fields
+    np.testing.assert_allclose(np.radians(np.asarray(fix.latitude)), sol.lat, rtol=0, atol=1e-15)
+
+
+def _solver(scenario, warnings):
+    from strapdown_ros.navigator import OUTPUT_TOPICS
+    from strapdown_ros.nodes.navigator_node import NavigatorSolver, _input_end_ns
+
+    settings = navigator_settings(scenario)
+    topics = {k: scenario.recording.topics[v] for k, v in OUTPUT_TOPICS.items()}
+    return NavigatorSolver(
+        settings, topics, None, None, 0.0, _input_end_ns(scenario, settings.imu_topic),
+        "earth", info=lambda m: None, warn=warnings.append, error=warnings.append,
+    )  # fmt: skip
+
+
+def _live_order(contents, drop: int | None = None, swap: int | None = None):
+    """(kind, payload) in publication order: odom m, then imu m (variation_node's merge order)."""
+    imu = contents.topics["/variation/imu"].payloads
+    odom = contents.topics["/variation/odom"].payloads
+    imu_items = [("imu", p) for p in imu]
+    if drop is not None:
+        del imu_items[drop]
+    if swap is not None:
+        imu_items[swap], imu_items[swap + 1] = imu_items[swap + 1], imu_items[swap]
+    items = [("odom", odom[0])]
+    for i, it in enumerate(imu_items):
+        if i + 1 < len(odom):
+            items.append(("odom", odom[i + 1]))
+        items.append(it)
+    return items
+
+
+def test_solver_publishes_the_bag_payloads(bag, scenario) -> None:
+    _, contents = bag
+    warnings: list[str] = []
+    solver = _solver(scenario, warnings)
+    got: dict[str, list[bytes]] = {t: [] for t in NAV_TOPICS}
+    for kind, payload in _live_order(contents):
+        handler = solver.on_imu if kind == "imu" else solver.on_truth
+        for topic, _, data in handler(payload):
+            got[topic].append(bytes(data))
+    assert not warnings
+    assert solver.finished and solver.runs == 1
+    for topic in NAV_TOPICS:
+        assert got[topic] == [bytes(p) for p in contents.topics[topic].payloads], topic
+
+
+def test_solver_gap_and_out_of_order(bag, scenario) -> None:
+    """A missing IMU message ends the run at its last complete cycle and a new run starts from
+    the truth; a swapped pair: the late one is dropped (logged), the early one is a gap."""
+    _, contents = bag
+    warnings: list[str] = []
+    solver = _solver(scenario, warnings)
+    got: dict[str, list[tuple[int, bytes]]] = {t: [] for t in NAV_TOPICS}
+    drop = 123  # IMU message index 123 (cycle 124) missing
+    for kind, payload in _live_order(contents, drop=drop):
+        handler = solver.on_imu if kind == "imu" else solver.on_truth
+        for topic, stamp, data in handler(payload):
+            got[topic].append((stamp, bytes(data)))
+    assert any("gap" in w and "missing" in w for w in warnings), warnings
+    assert solver.runs == 2
+    period, t0 = scenario.period_ns, scenario.start_time_ns
+    stamps = [s for s, _ in got["/navigator/odom"]]
+    assert stamps == sorted(set(stamps))
+    # Run 1: outputs up to the last complete cycle before the gap equal the bag's.
+    bag_odom = dict(
+        zip(contents.topics["/navigator/odom"].fields.stamps_ns.tolist(),
+            map(bytes, contents.topics["/navigator/odom"].payloads), strict=True)
+    )  # fmt: skip
+    first_run = [(s, p) for s, p in got["/navigator/odom"] if s < t0 + 124 * period]
+    assert first_run and all(bag_odom[s] == p for s, p in first_run)
+    assert max(s for s, _ in first_run) == t0 + 120 * period  # cycle 124 missing: last T_nav 120
+    # Run 2 starts at cycle 124 (the truth before the next message, cycle 125), exact again.
+    second = [s for s, _ in got["/navigator/odom"] if s >= t0 + 124 * period]
+    assert second[0] == t0 + 124 * period and second[1] == t0 + 134 * period
+    errs = cdr.deserialize(cdr.VECTOR3_STAMPED, [p for _, p in got["/navigator/error/position"]])
+    assert np.abs(np.asarray(errs.vector)).max() < 1e-6  # restarted from truth: still exact
+
+    warnings.clear()
+    solver = _solver(scenario, warnings)
+    for kind, payload in _live_order(contents, swap=200):
+        handler = solver.on_imu if kind == "imu" else solver.on_truth
+        handler(payload)
+    assert any("gap" in w for w in warnings) and any("dropped" in w for w in warnings), warnings
+    assert solver.runs == 2
+
+
+def test_scenario_rejects_bad_navigator_sections() -> None:
+    from strapdown_ros.scenario import ScenarioError
+
+    cases = {
+        "navigator.mode=rk4": "navigator.mode",
+        "navigator.algorithm=simultaneous": "navigator.mode",  # default mode exact: not Table 2
+        "navigator.n=0": "navigator.n",
+        "navigator.imu_topic=/nope": "navigator.imu_topic",
+        "navigator.imu_topic=/variation/imu_measured": "navigator.imu_topic",
+        "navigator.initial_errors.position_ned_m=[1, 2]": "navigator.initial_errors.position_ned_m",
+        "navigator.vertical_damping={k1: 1}": "navigator.vertical_damping",
+        "navigator.frobnicate=1": "navigator.frobnicate",
+    }
+    for override, key in cases.items():
+        with pytest.raises(ScenarioError) as info:
+            load_scenario(SCENARIO, [override], 1.0)
+        assert info.value.key == key, (override, str(info.value))
+
+
+def test_initial_errors_show_in_the_first_output(scenario) -> None:
+    from strapdown_ros.navigator import initial_state_from_truth
+    from strapdown_ros.reference import generate_reference
+
+    s = load_scenario(
+        SCENARIO,
+        ["navigator.initial_errors={position_ned_m: [3, -4, 1], velocity_ned_mps: [0.1, 0, 0],"
+         " attitude_rph_deg: [0, 0, 0.01]}"],
+        1.0,
+    )  # fmt: skip
+    settings = navigator_settings(s)
+    ref = generate_reference(s)
+    from strapdown_ros.messages import odometry_fields, odometry_state
+
+    truth = odometry_state(odometry_fields(ref))
+    st = initial_state_from_truth(truth, 0, settings)
+    from strapdown_ros.core.navigation import NavSolution
+    from strapdown_ros.core.navigation.errors import navigation_errors
+
+    sol = NavSolution(
+        np.array([0.0]), np.array([st.lat]), np.array([st.lon]), np.array([st.alt]),
+        st.v_ned[None], st.q_b_n[None], 1,
+    )  # fmt: skip
+    err = navigation_errors(sol, ref)
+    np.testing.assert_allclose(err.position_ned[0], [3, -4, 1], atol=1e-8)
+    np.testing.assert_allclose(err.velocity_ned[0], [0.1, 0, 0], atol=1e-12)
+    # A heading error of 0.01°: the Young angle about the vertical (θ1, up) is -0.01° (the
+    # computed level frame is rotated by +0.01° about down relative to the true one).
+    assert abs(abs(err.attitude_young[0, 0]) - np.radians(0.01)) < 1e-9
+    assert np.abs(err.attitude_young[0, 1:]).max() < 1e-9
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. Three nodes as processes over DDS
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_three_node_pipeline_equals_generate(bag, procs, ros_env, tmp_path) -> None:
+    from node_testing import Proc
+
+    _, contents = bag
+    deadline = time.monotonic() + TIMEOUT_S
+    out = tmp_path / "recording.pkl"
+    # The recorder also takes variation_node's other outputs (it waits for a subscription on
+    # each before subscribing to the reference).
+    others = {
+        "/variation/fix": cdr.NAVSATFIX,
+        "/variation/reference/imu": cdr.IMU,
+        "/variation/reference/odom": cdr.ODOMETRY,
+    }
+    counts = {t: len(contents.topics[t].payloads) for t in [*NAV_TOPICS, *others]}
+    args = [sys.executable, str(HELPERS / "raw_recorder.py"), "--out", str(out)]
+    args += ["--timeout", str(TIMEOUT_S - 10)]
+    for topic, msgtype in [*NAV_TOPICS.items(), *others.items()]:
+        args += ["--topic", f"{topic}={msgtype}={counts[topic]}"]
+    rec = Proc(args, ros_env, tmp_path, "recorder")
+    procs.append(rec)
+    common = [f"scenario:={SCENARIO}", f"duration_s:={DURATION_S}"]
+
+    def node(name: str, *params: str) -> Proc:
+        cmd = [_exe(name), "--ros-args"]
+        for p in (*common, *params):
+            cmd += ["-p", p]
+        proc = Proc(cmd, ros_env, tmp_path, name)
+        procs.append(proc)
+        return proc
+
+    nav = node("navigator_node", "wait_for_subscribers:=1", "qos_depth:=5000")
+    nav.wait_for(r"subscribed to /variation/imu", deadline)
+    var = node("variation_node", "wait_for_subscribers:=1", "qos_depth:=5000")
+    var.wait_for(r"subscribed to /reference/imu", deadline)
+    traj = node(
+        "trajectory_node", "rate_factor:=1.0", "time_source:=wall", "wait_for_subscribers:=1",
+        "wait_for_all_topics:=false", "qos_depth:=5000",
+    )  # fmt: skip
+    assert traj.wait(deadline) == 0, traj.describe()
+    assert var.wait(deadline) == 0, var.describe()
+    assert nav.wait(deadline) == 0, nav.describe() + rec.describe()
+    assert rec.wait(deadline) == 0, rec.describe() + nav.describe()
+    for p in (var, nav):
+        assert "Traceback" not in p.output and "WARN" not in p.output, p.describe()
+    with open(out, "rb") as f:
+        recorded = pickle.load(f)["topics"]
+    for topic in NAV_TOPICS:
+        want = [bytes(p) for p in contents.topics[topic].payloads]
+        got = [bytes(p)[: len(w)] for p, w in zip(recorded[topic], want, strict=True)]
+        assert got == want, topic
