@@ -30,6 +30,7 @@ __all__ = [
     "declare_number",
     "declare_string",
     "declare_string_array",
+    "declare_subscriber_counts",
     "message_class",
     "qos_from_parameters",
 ]
@@ -219,24 +220,57 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
         rclpy.try_shutdown()
 
 
+def declare_subscriber_counts(node: Node) -> dict[str, int]:
+    """Declare ``subscribers_per_topic`` (``TOPIC=COUNT`` strings) and return it as a dict.
+
+    Used by orchestrators (``strapdown-sim run``) that know how many subscriptions each output
+    topic will have (e.g. a recorder and a downstream node on ``/variation/imu``).
+    """
+    out: dict[str, int] = {}
+    for item in declare_string_array(
+        node, "subscribers_per_topic", "TOPIC=COUNT: subscriptions to wait for on that topic"
+    ):
+        topic, sep, count = item.rpartition("=")
+        if not sep or not topic.startswith("/") or not count.isdigit():
+            raise ParameterError(
+                "subscribers_per_topic", f"items must be /topic=COUNT, got {item!r}"
+            )
+        out[topic] = int(count)
+    return out
+
+
 def wait_for_subscriptions(
-    node: Node, pubs: list[Any], wanted: int, timeout_s: float, spin: Callable[[float], None]
+    node: Node,
+    pubs: list[Any],
+    wanted: int,
+    timeout_s: float,
+    spin: Callable[[float], None],
+    per_topic: dict[str, int] | None = None,
 ) -> bool:
     """Spin until every publisher in ``pubs`` has ``wanted`` matched subscriptions.
 
-    Returns False (after logging which topics are short) when ``timeout_s`` passes first.
+    ``per_topic`` overrides ``wanted`` for the publishers of the named topics. Returns False
+    (after logging which topics are short) when ``timeout_s`` passes first.
     """
+    per_topic = per_topic or {}
+
+    def want(p: Any) -> int:
+        return per_topic.get(p.topic_name, wanted)
+
     deadline = time.monotonic() + timeout_s
     while True:
-        missing = [p for p in pubs if p.get_subscription_count() < wanted]
+        missing = [p for p in pubs if p.get_subscription_count() < want(p)]
         if not missing:
             waited = time.monotonic() - deadline + timeout_s
             node.get_logger().info(f"subscriptions matched after {waited:.3f} s")
             return True
         if time.monotonic() > deadline:
             node.get_logger().error(
-                f"timeout after {timeout_s:g} s waiting for {wanted} subscription(s) on "
-                + ", ".join(f"{p.topic_name} (has {p.get_subscription_count()})" for p in missing)
+                f"timeout after {timeout_s:g} s waiting for subscriptions on "
+                + ", ".join(
+                    f"{p.topic_name} (has {p.get_subscription_count()}, wants {want(p)})"
+                    for p in missing
+                )
             )
             return False
         spin(0.02)

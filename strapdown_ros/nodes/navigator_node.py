@@ -54,6 +54,7 @@ from strapdown_ros.nodes._common import (
     declare_number,
     declare_string,
     declare_string_array,
+    declare_subscriber_counts,
     message_class,
     qos_from_parameters,
     run_node,
@@ -378,6 +379,7 @@ class NavigatorNode(Node):
             self, "wait_for_subscribers", 0, "output subscriptions to wait for", 0
         )
         self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
+        self.subscribers_per_topic = declare_subscriber_counts(self)
 
         end_ns = None
         if scenario is not None:
@@ -445,13 +447,13 @@ class NavigatorNode(Node):
         def spin(timeout_s: float) -> None:
             executor.spin_once(timeout_sec=timeout_s)
 
-        if self.wait_for_subscribers > 0:
+        if self.wait_for_subscribers > 0 or self.subscribers_per_topic:
             self.get_logger().info(
                 f"waiting for {self.wait_for_subscribers} subscription(s) on every output topic"
             )
             if not wait_for_subscriptions(
                 self, list(self._pubs.values()), self.wait_for_subscribers,
-                self.wait_timeout_s, spin,
+                self.wait_timeout_s, spin, self.subscribers_per_topic,
             ):  # fmt: skip
                 return EXIT_FAILURE
         self._subscribe()

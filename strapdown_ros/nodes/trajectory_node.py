@@ -38,6 +38,7 @@ from strapdown_ros.nodes._common import (
     declare_number,
     declare_string,
     declare_string_array,
+    declare_subscriber_counts,
     message_class,
     qos_from_parameters,
     run_node,
@@ -151,6 +152,7 @@ class TrajectoryNode(Node):
         self.wait_for_subscribers = declare_int(
             self, "wait_for_subscribers", 0, "subscriptions to wait for before publishing", 0
         )
+        self.subscribers_per_topic = declare_subscriber_counts(self)
         self.wait_for_all_topics = declare_bool(
             self, "wait_for_all_topics", True, "wait on every published topic, not only the IMU"
         )
@@ -248,14 +250,17 @@ class TrajectoryNode(Node):
 
     def _wait_for_subscribers(self, spin: Callable[[float], None]) -> bool:
         wanted = self.wait_for_subscribers
-        if wanted <= 0:
+        if wanted <= 0 and not self.subscribers_per_topic:
             return True
-        pubs = [self._publishers_by_topic[t] for t in self._wait_topics]
+        topics = set(self._wait_topics) | set(self.subscribers_per_topic)
+        pubs = [p for t, p in self._publishers_by_topic.items() if t in topics]
         self.get_logger().info(
             f"waiting for {wanted} subscription(s) on {', '.join(self._wait_topics)} "
             f"(timeout {self.wait_timeout_s:g} s)"
         )
-        return wait_for_subscriptions(self, pubs, wanted, self.wait_timeout_s, spin)
+        return wait_for_subscriptions(
+            self, pubs, wanted, self.wait_timeout_s, spin, self.subscribers_per_topic
+        )
 
     def _wait_acked(self, pub, timeout_s: float) -> bool:
         """Wait (in short steps, so that a signal is noticed) until ``pub``'s data is acked."""

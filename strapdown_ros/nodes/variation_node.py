@@ -49,6 +49,7 @@ from strapdown_ros.nodes._common import (
     declare_number,
     declare_string,
     declare_string_array,
+    declare_subscriber_counts,
     message_class,
     qos_from_parameters,
     run_node,
@@ -496,6 +497,7 @@ class VariationNode(Node):
             0,
         )
         self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
+        self.subscribers_per_topic = declare_subscriber_counts(self)
 
         recording = dataclasses.replace(scenario.recording, topics=topics)
         self.scenario = dataclasses.replace(scenario, recording=recording)
@@ -592,14 +594,16 @@ class VariationNode(Node):
 
     def _wait_for_subscribers(self, spin: Callable[[float], None]) -> bool:
         wanted = self.wait_for_subscribers
-        if wanted <= 0:
+        if wanted <= 0 and not self.subscribers_per_topic:
             return True
         pubs = list(self._publishers_by_topic.values())
         self.get_logger().info(
             f"waiting for {wanted} subscription(s) on every output topic "
             f"(timeout {self.wait_timeout_s:g} s)"
         )
-        return wait_for_subscriptions(self, pubs, wanted, self.wait_timeout_s, spin)
+        return wait_for_subscriptions(
+            self, pubs, wanted, self.wait_timeout_s, spin, self.subscribers_per_topic
+        )
 
     def _drain(self, spin: Callable[[float], None]) -> None:
         """Let the subscribers receive everything: acknowledgements, then a grace period."""

@@ -1,0 +1,363 @@
+"""``strapdown-sim run``: the live pipeline as separate ROS 2 processes (SPEC §6, issue 6).
+
+Starts ``bag_recorder``, ``navigator_node``, ``imu_model_node``, ``variation_node`` and
+``trajectory_node`` (those the scenario needs) as child processes in a private ROS domain
+(LOCALHOST discovery), downstream first: each node waits until every one of its output topics
+has as many matched subscriptions as the pipeline will have on it (``subscribers_per_topic``:
+the recorder plus the downstream nodes), and only then subscribes to its inputs, so no message
+is published before everyone who should record or process it is listening. The trajectory node
+then publishes the scenario paced at ``rate_factor`` x real time; every node exits after its last
+message, the recorder (``stop_when_done``) when all its publishers are gone, and the recorded
+message counts are checked against what the scenario produces.
+
+Children die with this process (``PR_SET_PDEATHSIG`` on Linux); when one fails, the others are
+stopped (SIGINT, then SIGKILL) and its log is printed. Logs: ``<out>.logs/<node>.log``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from strapdown_ros.scenario import Scenario, load_scenario
+
+__all__ = ["PipelineError", "PipelineResult", "expected_counts", "run_pipeline"]
+
+#: Seconds a node may take to start and subscribe.
+STARTUP_TIMEOUT_S = 60.0
+#: Seconds the recorder may take to notice that every publisher is gone.
+RECORDER_GRACE_S = 30.0
+#: Seconds between SIGINT and SIGKILL when stopping children.
+STOP_GRACE_S = 10.0
+
+
+class PipelineError(RuntimeError):
+    """A child process failed; ``log`` is its output."""
+
+    def __init__(self, message: str, log: str = "") -> None:
+        super().__init__(message)
+        self.log = log
+
+
+@dataclass
+class PipelineResult:
+    """What ``run`` recorded."""
+
+    out: Path
+    counts: dict[str, int] = field(default_factory=dict)
+    expected: dict[str, int] = field(default_factory=dict)
+    elapsed_s: float = 0.0
+    duration_s: float = 0.0
+    domain_id: int = 0
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """Topics with fewer (or more) messages than the scenario produces: topic → difference."""
+        return {
+            t: n - self.counts.get(t, 0)
+            for t, n in self.expected.items()
+            if self.counts.get(t, 0) != n
+        }
+
+    def format(self) -> str:
+        lines = [
+            f"bag:       {self.out}",
+            f"duration:  {self.duration_s:.3f} s of data in {self.elapsed_s:.2f} s "
+            f"(ROS_DOMAIN_ID={self.domain_id})",
+            "topics:    recorded / expected",
+        ]
+        width = max((len(t) for t in self.expected), default=0)
+        for topic, n in self.expected.items():
+            got = self.counts.get(topic, 0)
+            flag = "" if got == n else "   <-- MISMATCH"
+            lines.append(f"  {topic:<{width}}  {got:>9d} / {n:<9d}{flag}")
+        extra = sorted(set(self.counts) - set(self.expected))
+        lines += [f"  {t}: {self.counts[t]} (not expected)" for t in extra]
+        lines.append("zero loss" if not self.lost else f"LOST OR EXTRA: {self.lost}")
+        return "\n".join(lines)
+
+
+def expected_counts(scenario: Scenario) -> dict[str, int]:
+    """Message count of every topic the scenario produces (what ``generate`` writes)."""
+    from strapdown_ros.navigator import INPUT_STREAMS, navigator_settings
+    from strapdown_ros.reference import build_trajectory, output_cycles
+    from strapdown_ros.topics import produced_keys
+
+    cycles = output_cycles(scenario, build_trajectory(scenario))
+    m_var = cycles - 1 - (cycles - 1) % 2  # the variation ends at the last even cycle < M
+    imu_counts = {
+        "reference_imu": cycles,
+        "variation_imu": m_var,
+        "variation_reference_imu": m_var,
+        "variation_imu_measured": m_var,
+    }
+    per_key = {
+        "clock": cycles + 1,
+        "reference_odom": cycles + 1,
+        "reference_fix": cycles + 1,
+        "variation_odom": m_var + 1,
+        "variation_fix": m_var + 1,
+        "variation_reference_odom": m_var + 1,
+        **imu_counts,
+    }
+    if scenario.navigator is not None:
+        st = navigator_settings(scenario)
+        key = next(k for k, v in scenario.recording.topics.items() if v == st.imu_topic)
+        assert key in INPUT_STREAMS
+        outputs = imu_counts[key] // st.n + 1
+        for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude"):
+            per_key[f"navigator_{k}"] = outputs
+    topics = scenario.recording.topics
+    return {topics[k]: per_key[k] for k in produced_keys(scenario)}
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child
+    """Linux: the child gets SIGTERM when the parent dies (no orphans)."""
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
+class _Child:
+    def __init__(self, name: str, args: list[str], env: dict[str, str], log_dir: Path) -> None:
+        self.name = name
+        self.log_path = log_dir / f"{name}.log"
+        self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in close()
+        preexec = _die_with_parent if sys.platform.startswith("linux") else None
+        self.proc = subprocess.Popen(
+            args, env=env, stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
+            preexec_fn=preexec,
+        )  # fmt: skip
+
+    @property
+    def log(self) -> str:
+        self._log.flush()
+        return self.log_path.read_text(errors="replace")
+
+    def wait_for(self, text: str, timeout_s: float, others: list[_Child]) -> None:
+        deadline = time.monotonic() + timeout_s
+        while text not in self.log:
+            for c in [self, *others]:
+                if c.proc.poll() is not None and c.proc.returncode != 0:
+                    raise PipelineError(f"{c.name} exited with status {c.proc.returncode}", c.log)
+            if self.proc.poll() is not None:
+                raise PipelineError(f"{self.name} exited before '{text}'", self.log)
+            if time.monotonic() > deadline:
+                raise PipelineError(f"{self.name}: no '{text}' within {timeout_s:g} s", self.log)
+            time.sleep(0.05)
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+
+    def close(self) -> None:
+        self._log.close()
+
+
+def _stop_all(children: list[_Child]) -> None:
+    for c in children:
+        c.stop()
+    deadline = time.monotonic() + STOP_GRACE_S
+    for c in children:
+        try:
+            c.proc.wait(timeout=max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            c.proc.kill()
+            c.proc.wait()
+
+
+def _executable(name: str) -> str:
+    local = Path(sys.executable).parent / name
+    return str(local) if local.exists() else name
+
+
+def _private_domain() -> int:
+    """A domain id in 102..232 from the pid (test sessions use 1..101; see test/conftest.py)."""
+    return 102 + os.getpid() % 131
+
+
+def run_pipeline(
+    scenario_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    overrides: Sequence[str] = (),
+    duration_s: float | None = None,
+    storage: str | None = None,
+    force: bool = False,
+    rate_factor: float = 1.0,
+    domain_id: int | None = None,
+    timeout_s: float | None = None,
+    progress: bool = True,
+) -> PipelineResult:
+    """Run the scenario live and record it into ``out``; see the module docstring.
+
+    Raises
+    ------
+    PipelineError
+        A node failed (its log attached), or the pipeline did not finish within ``timeout_s``
+        (default: the data duration / ``rate_factor`` + 120 s).
+    FileExistsError
+        ``out`` exists and ``force`` is false.
+    """
+    from strapdown_ros.bag.reader import read_bag
+    from strapdown_ros.navigator import navigator_settings
+
+    t_start = time.monotonic()
+    scenario = load_scenario(scenario_path, list(overrides), duration_s)
+    out = Path(out)
+    if out.exists() and not force:
+        raise FileExistsError(f"{out} exists already; not overwriting (use --force)")
+    expected = expected_counts(scenario)
+    topics = scenario.recording.topics
+    data_s = (max(expected.get(topics["reference_odom"], 1), 1) - 1) * scenario.period_ns * 1e-9
+    if timeout_s is None:
+        timeout_s = data_s / max(rate_factor, 1e-3) + 120.0
+    domain = _private_domain() if domain_id is None else int(domain_id)
+    env = dict(os.environ)
+    env.update(
+        ROS_DOMAIN_ID=str(domain),
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        RMW_IMPLEMENTATION=env.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp",
+        PYTHONUNBUFFERED="1",
+    )
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    log_dir = out.parent / f"{out.name}.logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+
+    common = [f"scenario:={Path(scenario_path).resolve()}"]
+    if overrides:
+        common.append("overrides:=[" + ",".join(f"'{o}'" for o in overrides) + "]")
+    if duration_s is not None:
+        common.append(f"duration_s:={float(duration_s)}")
+
+    # Subscriptions per topic: the recorder on every produced topic, plus the pipeline's nodes.
+    subs = dict.fromkeys(expected, 1)
+    nav = navigator_settings(scenario) if scenario.navigator is not None else None
+    if scenario.variation is not None:
+        subs[topics["reference_imu"]] += 1
+        subs[topics["reference_odom"]] += 1
+    if scenario.imu_errors is not None:
+        subs[topics["variation_imu"]] += 1
+    if nav is not None:
+        subs[nav.imu_topic] += 1
+        if nav.truth_topic:
+            subs[nav.truth_topic] += 1
+
+    def per_topic(names: list[str]) -> str:
+        items = [f"'{t}={subs[t]}'" for t in names if t in subs]
+        return "subscribers_per_topic:=[" + ",".join(items) + "]"
+
+    def ros_args(*params: str) -> list[str]:
+        args = ["--ros-args"]
+        for p in (*common, *params):
+            args += ["-p", p]
+        return args
+
+    children: list[_Child] = []
+
+    def start(name: str, *params: str) -> _Child:
+        child = _Child(name, [_executable(name), *ros_args(*params)], env, log_dir)
+        children.append(child)
+        return child
+
+    def say(text: str) -> None:
+        if progress:
+            print(f"[run] {text}", file=sys.stderr, flush=True)
+
+    deep = "qos_depth:=10000"
+    try:
+        rec_params = [f"output:={out}", "stop_when_done:=true", "force:=" + str(force).lower()]
+        if storage:
+            rec_params.append(f"storage:={storage}")
+        say(f"ROS_DOMAIN_ID={domain}; logs in {log_dir}")
+        start("bag_recorder", *rec_params)
+        if nav is not None:
+            outs = [
+                topics[f"navigator_{k}"]
+                for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude")
+            ]
+            node = start("navigator_node", per_topic(outs), deep)
+            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
+            say("navigator_node subscribed")
+        if scenario.imu_errors is not None:
+            node = start("imu_model_node", per_topic([topics["variation_imu_measured"]]), deep)
+            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
+            say("imu_model_node subscribed")
+        if scenario.variation is not None:
+            outs = [
+                topics[k]
+                for k in (
+                    "variation_imu",
+                    "variation_odom",
+                    "variation_fix",
+                    "variation_reference_imu",
+                    "variation_reference_odom",
+                )
+            ]
+            node = start("variation_node", per_topic(outs), deep)
+            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
+            say("variation_node subscribed")
+        traj_topics = [topics[k] for k in ("reference_imu", "reference_odom", "reference_fix")]
+        time_source = "wall"
+        if scenario.recording.clock:
+            traj_topics.append(topics["clock"])
+            time_source = "sim"
+        say(f"trajectory_node: {data_s:g} s of data at rate_factor {rate_factor:g}")
+        traj = start(
+            "trajectory_node", per_topic(traj_topics), f"rate_factor:={float(rate_factor)}",
+            f"time_source:={time_source}", "wait_for_all_topics:=false", deep,
+        )  # fmt: skip
+        deadline = time.monotonic() + timeout_s
+        recorder = children[0]
+        done_at: float | None = None
+        interrupted = False
+        while True:
+            for c in children:
+                code = c.proc.poll()
+                if code is not None and code != 0:
+                    raise PipelineError(f"{c.name} exited with status {code}", c.log)
+            if recorder.proc.poll() == 0:
+                break
+            producers_done = all(c.proc.poll() == 0 for c in children if c is not recorder)
+            if producers_done and traj.proc.poll() == 0:
+                # The recorder stops by itself once every publisher is gone (stop_when_done);
+                # if it has not within RECORDER_GRACE_S, SIGINT makes it finalize the bag.
+                if done_at is None:
+                    done_at = time.monotonic()
+                elif time.monotonic() - done_at > RECORDER_GRACE_S and not interrupted:
+                    say("recorder still running after the producers finished; sending SIGINT")
+                    recorder.stop()
+                    interrupted = True
+            if time.monotonic() > deadline:
+                raise PipelineError(
+                    f"the pipeline did not finish within {timeout_s:g} s", recorder.log
+                )
+            time.sleep(0.1)
+        say("recorder finished")
+    except BaseException:
+        _stop_all(children)
+        raise
+    finally:
+        for c in children:
+            if c.proc.poll() is None:
+                c.proc.kill()
+                c.proc.wait()
+            c.close()
+    contents = read_bag(out)
+    counts = {t: len(d) for t, d in contents.topics.items()}
+    return PipelineResult(
+        out=out,
+        counts=counts,
+        expected=expected,
+        elapsed_s=time.monotonic() - t_start,
+        duration_s=data_s,
+        domain_id=domain,
+    )
