@@ -61,6 +61,8 @@ def bag(tmp_path_factory):
         "recording.clock=true",
         "--set",
         "variation=null",  # the reference streams only: what trajectory_node publishes
+        "--set",
+        "navigator=null",
         "--quiet",
     ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
@@ -240,7 +242,8 @@ def test_no_subscriber_within_timeout_exits_1(ros_env):
     )
     output = proc.stdout + proc.stderr
     assert proc.returncode == 1, output
-    assert "timeout after 0.5 s waiting for 1 subscription(s)" in output, output
+    assert "timeout after 0.5 s waiting for subscriptions" in output, output
+    assert "(has 0, wants 1)" in output, output
     assert "Traceback" not in output, output
 
 

@@ -366,7 +366,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
     [
         ([], r"parameter 'scenario': is required"),
         (
-            [f"scenario:={SCENARIO}", "overrides:=['variation=null']"],
+            [f"scenario:={SCENARIO}", "overrides:=['variation=null', 'navigator=null']"],
             r"invalid scenario: variation: missing",
         ),
         (
