@@ -281,7 +281,11 @@ def generate_reference_chunks(
     for m0, m1 in _chunk_bounds(out_cycles, chunk_cycles, first_cycles):
         g0, g1 = m0 * oversample, m1 * oversample  # g0 is even: pairs align across chunks
         t = np.arange(g0, g1 + 1, dtype=np.int64) * gen_period_ns * 1e-9
-        truth = local_to_e0(trajectory.local_truth(t))
+        # Trajectories that know their E0 truth directly (samples) skip the geodetic round trip.
+        if hasattr(trajectory, "truth_e0"):
+            truth = trajectory.truth_e0(t)
+        else:
+            truth = local_to_e0(trajectory.local_truth(t))
         solution = method2(
             truth.c_b_e0,
             truth.r_e0,

@@ -23,6 +23,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core.rotations import matrix3
+
 __all__ = [
     "A_WGS84",
     "B_WGS84",
@@ -302,15 +304,7 @@ def dcm_ned_to_ecef(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
     """
     lat, lon = np.broadcast_arrays(_f64(lat), _f64(lon))
     sp, cp, sl, cl = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-    z = np.zeros_like(sp)
-    return np.stack(
-        [
-            np.stack([-sp * cl, -sl, -cp * cl], -1),
-            np.stack([-sp * sl, cl, -cp * sl], -1),
-            np.stack([cp, z, -sp], -1),
-        ],
-        -2,
-    )
+    return matrix3([[-sp * cl, -sl, -cp * cl], [-sp * sl, cl, -cp * sl], [cp, 0.0, -sp]])
 
 
 def dcm_ecef_to_ned(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
@@ -347,10 +341,7 @@ def dcm_ecef_to_e0(t: ArrayLike) -> NDArray[np.float64]:
     """
     a = OMEGA_IE * _f64(t)
     c, s = np.cos(a), np.sin(a)
-    o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack(
-        [np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2
-    )
+    return matrix3([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def dcm_e0_to_ecef(t: ArrayLike) -> NDArray[np.float64]:

@@ -191,8 +191,10 @@ def _design(xi: Array, degree: int, tau: Array, order: int) -> sparse.csr_array:
     coefficients ``j − order … j``, so ``order + 1`` interleaved columns suffice.
     """
     n = xi.size - degree - 1
+    # tau lies in the knot span (checked by the callers, _check_span); extrapolate=True only
+    # skips scipy's Python-level min()/max() over tau, which costs ~20 ms per 1e5 samples.
     if order == 0:
-        return sparse.csr_array(BSpline.design_matrix(tau, xi, degree))
+        return sparse.csr_array(BSpline.design_matrix(tau, xi, degree, extrapolate=True))
     g = order + 1
     comp = np.zeros((n, g))
     comp[np.arange(n), np.arange(n) % g] = 1.0
@@ -203,7 +205,7 @@ def _design(xi: Array, degree: int, tau: Array, order: int) -> sparse.csr_array:
     keep = cols < n
     rows, cols = rows[keep], cols[keep]
     dmap = sparse.csr_array((d.c[rows, cols % g], (rows, cols)), shape=(n_d, n))
-    basis = sparse.csr_array(BSpline.design_matrix(tau, d.t, d.k))
+    basis = sparse.csr_array(BSpline.design_matrix(tau, d.t, d.k, extrapolate=True))
     return sparse.csr_array(basis @ dmap)
 
 

@@ -51,12 +51,13 @@ from strapdown_ros.core.earth import (
     dcm_ecef_to_e0,
     dcm_ecef_to_ned,
     dcm_ned_to_ecef,
+    ecef_state_to_e0,
     ecef_to_geodetic,
     geodetic_to_ecef,
     ned_velocity_from_ecef,
 )
 from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_quat, quat_from_dcm
-from strapdown_ros.core.trajectory.base import LocalTruth
+from strapdown_ros.core.trajectory.base import LocalTruth, TruthE0
 from strapdown_ros.core.trajectory.giribet import (
     QuaternionSpline,
     breakpoint_continuity,
@@ -734,6 +735,17 @@ class SamplesTrajectory:
         return LocalTruth(
             t=t, lat=lat, lon=lon, alt=alt, v_ned=ned_velocity_from_ecef(lat, lon, v), c_b_n=c_b_n
         )
+
+    def truth_e0(self, t: ArrayLike) -> TruthE0:
+        """Truth at ``t`` directly in E0 (SPEC §1), without the geodetic round trip.
+
+        ``R^E0 = C_E^E0(t) r^E``, ``V^E0 = C_E^E0 (v^E + ω_ie × r^E)`` from the position spline
+        and its derivative, ``C_B^E0`` from the fitted quaternion (normalized). Equal to
+        ``local_to_e0(local_truth(t))`` up to that round trip's rounding (~1e-9 m).
+        """
+        t = self._t(np.atleast_1d(t))
+        r0, v0, _ = ecef_state_to_e0(t, self._pos(t), self._pos(t, 1))
+        return TruthE0(t=t, c_b_e0=dcm_from_quat(self._att.q(t)), v_e0=v0, r_e0=r0)
 
     def residuals(self) -> dict[str, float]:
         """RMS fit residuals at the samples, for the data given.
