@@ -413,6 +413,11 @@ def generate_dataset(
         duration_s=total * scenario.period_ns * 1e-9,
     )
 
+    # --- issue 7: /variation/imu_measured (the imu_errors model on its ideal input topic) ---
+    from strapdown_ros.imu_model import generate_measured_stream
+
+    measured = generate_measured_stream(scenario)  # validates imu_errors' topics first
+
     def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
         streamer = None if scenario.variation is None else _VariationStreamer(scenario, total)
         navigator = None if scenario.navigator is None else _NavigatorStreamer(scenario)
@@ -420,6 +425,8 @@ def generate_dataset(
             res = {"reference": stream_residuals(piece)}
             if streamer is not None:
                 batches = batches + streamer.feed(batches, res)
+            if measured is not None:  # issue 7: before the navigator, which may consume it
+                batches = batches + measured.feed_batches(batches)
             nav_errors: dict[str, float] = {}
             if navigator is not None:
                 batches = batches + navigator.feed(batches)

@@ -422,6 +422,14 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
         except ValueError as exc:
             head, sep, rest = str(exc).partition(": ")
             raise ScenarioError(head if sep else "variation", rest if sep else str(exc)) from None
+    imu_errors = section("imu_errors")
+    if imu_errors is not None:
+        from strapdown_ros.core.imu_errors import ImuErrorsError, parse_imu_errors
+
+        try:
+            parse_imu_errors(imu_errors)
+        except ImuErrorsError as exc:
+            raise ScenarioError(exc.key, exc.problem) from None
     recording = _parse_recording(doc.get("recording"))
     navigator = section("navigator")
     if navigator is not None:

@@ -165,6 +165,7 @@ def test_default_scenario_reintegration_drift_below_1e4_m(tmp_path):
         "/variation/fix": 119_999,
         "/variation/reference/imu": 119_998,
         "/variation/reference/odom": 119_999,
+        "/variation/imu_measured": 119_998,  # imu_errors (tactical preset) on /variation/imu
         # the navigator (N = 10) on /variation/imu: the initial state and 11 999 T_nav cycles
         **{f"/navigator/{t}": 12_000 for t in NAV_TOPICS},
     }

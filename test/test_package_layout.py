@@ -34,6 +34,7 @@ CONSOLE_SCRIPTS = {
     "trajectory_node": "strapdown_ros.nodes.trajectory_node:main",
     "variation_node": "strapdown_ros.nodes.variation_node:main",
     "navigator_node": "strapdown_ros.nodes.navigator_node:main",
+    "imu_model_node": "strapdown_ros.nodes.imu_model_node:main",
     "bag_recorder": "strapdown_ros.nodes.bag_recorder:main",
     "bag_player": "strapdown_ros.nodes.bag_player:main",
 }
@@ -114,15 +115,12 @@ def test_launch_file_imports_launch_lazily():
         assert "generate_launch_description" in functions, path
 
 
-def test_cli_placeholder_subcommands():
+def test_cli_subcommands_reject_missing_input():
     from strapdown_ros import cli
 
-    for argv in (
-        ["generate", "x.yaml", "--out", "o"],
-        ["run", "x.yaml", "--out", "o"],
-        ["report", "o"],
-    ):
-        assert cli.main(argv) == 2
+    for argv in (["generate", "x.yaml", "--out", "o"], ["run", "x.yaml", "--out", "o"]):
+        assert cli.main(argv) == 2  # invalid input: the scenario file does not exist
+    assert cli.main(["report", "o"]) == 1  # the bag directory does not exist
     with pytest.raises(SystemExit) as info:
         cli.main(["--help"])
     assert info.value.code == 0

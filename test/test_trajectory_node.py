@@ -63,6 +63,8 @@ def bag(tmp_path_factory):
         "variation=null",  # the reference streams only: what trajectory_node publishes
         "--set",
         "navigator=null",
+        "--set",
+        "imu_errors=null",
         "--quiet",
     ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)

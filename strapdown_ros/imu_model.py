@@ -1,0 +1,308 @@
+"""Measured IMU messages: the scenario's ``imu_errors`` model applied to an ideal Imu stream.
+
+The thin layer between :mod:`strapdown_ros.core.imu_errors` (the model, ROS-free) and the
+message world; ``strapdown-sim generate`` and ``imu_model_node`` both go through
+:class:`MeasuredImuStream`, so the bag and the live topic carry the same bytes.
+
+* **Input / output.** The ideal Imu topic ``imu_errors.input_topic`` (default
+  ``recording.topics.variation_imu``, ``/variation/imu``) becomes ``imu_errors.output_topic``
+  (default ``recording.topics.variation_imu_measured``, ``/variation/imu_measured``).
+* **Messages** (SPEC §2, §4). Increments are recovered as ``FRD(angular_velocity) T`` and
+  ``FRD(linear_acceleration) T`` with T the scenario's period, passed through the model and
+  published as ``FLU(Δα̃) / T``, ``FLU(Δṽ) / T`` with the input's stamp and ``frame_id``.
+  ``orientation`` is not provided (identity, ``orientation_covariance[0] = -1``).
+  ``angular_velocity_covariance`` and ``linear_acceleration_covariance`` are diagonal (FLU
+  axes), from :meth:`~strapdown_ros.core.imu_errors.ImuErrorModel.rate_noise_variance`: the
+  white part of one message's error (noise ``N²/T`` plus quantization ``q²/(6T²)``); the
+  slowly varying terms (biases, scale factors, misalignments) are cycle-to-cycle correlated and
+  left to the user's filter states.
+* **Cycles.** Message m of the input (``stamp = start_time + m T``) is cycle m of the model:
+  cycle 1 is the model's first sample, whatever arrives first. A stamp off the scenario's grid
+  is rejected (logged). A gap (missing cycles) is logged and the model is advanced over the
+  missing cycles (:meth:`~strapdown_ros.core.imu_errors.ImuErrorModel.skip`): the noise and the
+  bias processes of every later cycle are those of an uninterrupted run, while the quantizer's
+  running sum lacks the unknown increments of the missing cycles (so later quantized values can
+  differ from an uninterrupted run's by one quantum). An input that starts after cycle 1 is
+  treated the same way. An older stamp is logged and dropped (out of order, or a duplicate);
+  except cycle 1 after later cycles: the input restarted, and so does the model (from its seed,
+  a new run).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.batches import Batch, batch
+from strapdown_ros.core.imu_errors import (
+    ImuErrorModel,
+    ImuErrorParameters,
+    ImuErrorsError,
+    parse_imu_errors,
+)
+from strapdown_ros.messages import (
+    COVARIANCE_NOT_PROVIDED,
+    ImuFields,
+    imu_fields_from_increments,
+    imu_increments,
+)
+from strapdown_ros.scenario import Scenario, ScenarioError
+
+__all__ = [
+    "MeasuredImuStream",
+    "generate_measured_stream",
+    "imu_error_parameters",
+    "imu_model_topics",
+    "measured_covariances",
+    "measured_imu_fields",
+]
+
+Log = Callable[[str], None]
+
+
+def _ignore(_: str) -> None:
+    return None
+
+
+def imu_error_parameters(scenario: Scenario) -> ImuErrorParameters:
+    """The validated ``imu_errors`` section (ScenarioError naming the key, or if missing)."""
+    if scenario.imu_errors is None:
+        raise ScenarioError("imu_errors", "missing: the scenario defines no IMU error model")
+    try:
+        return parse_imu_errors(scenario.imu_errors)
+    except ImuErrorsError as exc:
+        raise ScenarioError(exc.key, exc.problem) from None
+
+
+def imu_model_topics(scenario: Scenario) -> tuple[str, str]:
+    """``(input, output)`` topics of the model: the section's, else ``recording.topics``'."""
+    params = imu_error_parameters(scenario)
+    topics = scenario.recording.topics
+    return (
+        params.input_topic or topics["variation_imu"],
+        params.output_topic or topics["variation_imu_measured"],
+    )
+
+
+def generate_measured_stream(scenario: Scenario) -> MeasuredImuStream | None:
+    """The :class:`MeasuredImuStream` of ``strapdown-sim generate`` (None without ``imu_errors``).
+
+    Raises ScenarioError (``imu_errors.input_topic``) when the input is not an ideal IMU topic
+    the scenario generates (the reference IMU, and the variation ones with a ``variation``).
+    """
+    if scenario.imu_errors is None:
+        return None
+    keys = ["reference_imu"]
+    if scenario.variation is not None:
+        keys += ["variation_imu", "variation_reference_imu"]
+    generated = [scenario.recording.topics[k] for k in keys]
+    stream = MeasuredImuStream(scenario)
+    if stream.input_topic not in generated:
+        raise ScenarioError(
+            "imu_errors.input_topic",
+            f"{stream.input_topic} is not an ideal IMU topic of this scenario "
+            f"(generated: {', '.join(generated)})",
+        )
+    if (
+        stream.output_topic in scenario.recording.topics.values()
+        and stream.output_topic != (scenario.recording.topics["variation_imu_measured"])
+    ):
+        raise ScenarioError(
+            "imu_errors.output_topic", f"{stream.output_topic} is another stream's topic"
+        )
+    return stream
+
+
+def measured_covariances(model: ImuErrorModel) -> tuple[np.ndarray, np.ndarray]:
+    """Row-major 3×3 covariances (9,) of the measured angular velocity ((rad/s)²) and linear
+    acceleration ((m/s²)²), diagonal in FLU axes (the FRD per-axis variances: the axis flips
+    do not change a diagonal)."""
+    gyro, accel = model.rate_noise_variance()
+    return np.diag(gyro).reshape(9), np.diag(accel).reshape(9)
+
+
+def measured_imu_fields(ideal: ImuFields, model: ImuErrorModel, period_ns: int) -> ImuFields:
+    """Measured Imu fields of the next ideal messages (consecutive cycles of the model).
+
+    Parameters
+    ----------
+    ideal : ImuFields
+        Ideal Imu messages of consecutive cycles (SPEC §2), FLU.
+    model : ImuErrorModel
+        The run's model; advanced by ``len(ideal)`` cycles.
+    period_ns : int
+        T (ns) of the stream.
+
+    Returns
+    -------
+    ImuFields
+        Same stamps and ``frame_id``; measured rates and specific forces; covariances from the
+        model; orientation not provided.
+    """
+    inc = imu_increments(ideal, period_ns)
+    dalpha, dv = model.apply(inc.dalpha, inc.dv)
+    cov_w, cov_a = measured_covariances(model)
+    return imu_fields_from_increments(
+        inc.stamps_ns,
+        dalpha,
+        dv,
+        period_ns,
+        ideal.frame_id,
+        c_frd_ned=None,
+        orientation_covariance=COVARIANCE_NOT_PROVIDED,
+        angular_velocity_covariance=cov_w,
+        linear_acceleration_covariance=cov_a,
+    )
+
+
+def format_stamp(stamp_ns: int) -> str:
+    """``sec.nanosec`` of a stamp (ns since the epoch)."""
+    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
+
+
+class MeasuredImuStream:
+    """Ideal Imu messages in (in chunks of any size), measured ones out; no rclpy.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Supplies the cycle grid (``start_time_ns``, T) and the ``imu_errors`` section.
+    input_topic, output_topic : str, optional
+        Override the topics of :func:`imu_model_topics` (node parameters).
+    info, warn, error : callable
+        Loggers (the node's); gaps and dropped messages go to ``warn``, rejected ones to
+        ``error``.
+
+    Attributes
+    ----------
+    last_cycle : int
+        Last cycle processed (0: none yet).
+    published : int
+        Measured messages produced.
+    runs : int
+        Model runs (1 + restarts of the input at cycle 1).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        input_topic: str | None = None,
+        output_topic: str | None = None,
+        *,
+        info: Log = _ignore,
+        warn: Log = _ignore,
+        error: Log = _ignore,
+    ) -> None:
+        self.params = imu_error_parameters(scenario)
+        default_in, default_out = imu_model_topics(scenario)
+        self.input_topic = input_topic or default_in
+        self.output_topic = output_topic or default_out
+        self.t0_ns = scenario.start_time_ns
+        self.period_ns = scenario.period_ns
+        self.info, self.warn, self.error = info, warn, error
+        self.model = ImuErrorModel(self.params, self.period_ns * 1e-9)
+        self.last_cycle = 0
+        self.published = 0
+        self.runs = 1
+
+    def describe(self, m: int) -> str:
+        """``stamp (cycle m)`` of cycle m."""
+        return f"{format_stamp(self.t0_ns + m * self.period_ns)} (cycle {m})"
+
+    def _cycles(self, stamps_ns: np.ndarray) -> np.ndarray:
+        """Cycle index of each stamp; -1 for a stamp off the grid or before cycle 1."""
+        offset = stamps_ns - self.t0_ns
+        m = offset // self.period_ns
+        bad = (offset % self.period_ns != 0) | (m < 1)
+        return np.where(bad, -1, m)
+
+    def feed(self, ideal: ImuFields) -> ImuFields | None:
+        """Measured messages of the ideal messages ``ideal`` (None if all were dropped)."""
+        stamps = np.asarray(ideal.stamps_ns, dtype=np.int64)
+        cycles = self._cycles(stamps)
+        parts: list[ImuFields] = []
+        i, n = 0, len(stamps)
+        while i < n:
+            m = int(cycles[i])
+            if m < 0:
+                self.error(
+                    f"{self.input_topic}: stamp {format_stamp(int(stamps[i]))} is not a cycle "
+                    f"m >= 1 of the scenario's grid (start {format_stamp(self.t0_ns)}, T = "
+                    f"{self.period_ns} ns); rejected"
+                )
+                i += 1
+                continue
+            last = self.last_cycle
+            if m <= last:
+                if m == 1:
+                    self.warn(
+                        f"{self.input_topic}: stamp {self.describe(1)} after {self.describe(last)}"
+                        ": the input restarted; the model restarts from its seed (a new run)"
+                    )
+                    self.model = ImuErrorModel(self.params, self.period_ns * 1e-9)
+                    self.last_cycle = last = 0
+                    self.runs += 1
+                else:
+                    what = "duplicate stamp" if m == last else "out-of-order stamp"
+                    self.warn(
+                        f"{self.input_topic}: {what} {self.describe(m)} after "
+                        f"{self.describe(last)}: dropped"
+                    )
+                    i += 1
+                    continue
+            if m > last + 1:
+                missing = m - last - 1
+                if last == 0:
+                    self.warn(
+                        f"{self.input_topic}: the input starts at {self.describe(m)}; the model "
+                        f"is advanced over cycles 1..{m - 1}"
+                    )
+                else:
+                    self.warn(
+                        f"{self.input_topic}: gap: stamp {self.describe(m)} follows "
+                        f"{self.describe(last)}; the model is advanced over the {missing} "
+                        "missing cycle(s) (noise continues; the quantizer misses their "
+                        "increments)"
+                    )
+                self.model.skip(missing)
+            j = i + 1
+            while j < n and cycles[j] == cycles[j - 1] + 1:
+                j += 1
+            parts.append(measured_imu_fields(ideal.rows(i, j), self.model, self.period_ns))
+            self.last_cycle = int(cycles[j - 1])
+            i = j
+        if not parts:
+            return None
+        out = parts[0]
+        for p in parts[1:]:
+            out = out.append(p)
+        self.published += len(out)
+        return out
+
+    def on_payload(self, payload: bytes | memoryview) -> bytes | None:
+        """One serialized ideal Imu message in, its serialized measured message out (or None).
+
+        A payload that does not decode as ``sensor_msgs/Imu`` is logged and dropped.
+        """
+        try:
+            ideal = cdr.deserialize(cdr.IMU, [payload])
+        except Exception as exc:  # any decoding problem rejects the message
+            self.error(f"{self.input_topic}: rejected a message that does not decode: {exc}")
+            return None
+        out = self.feed(ideal)  # type: ignore[arg-type]
+        if out is None:
+            return None
+        return bytes(cdr.serialize(out)[0])
+
+    def feed_batches(self, batches: list[Batch]) -> list[Batch]:
+        """``generate``'s path: the output batch of the input topic's batch among ``batches``."""
+        out = []
+        for b in batches:
+            if b.topic != self.input_topic or not len(b.payloads):
+                continue
+            fields = self.feed(cdr.deserialize(b.msgtype, b.payloads))  # type: ignore[arg-type]
+            if fields is not None:
+                out.append(batch(self.output_topic, fields))
+        return out
