@@ -2,8 +2,10 @@
 
 Usage: python tools/plot_reference.py BAG_DIR OUT.png
 
-Reads the bag back from disk (Odometry, NavSatFix and Imu of /reference), so the figure shows
-what a user of the dataset gets. Used for the README picture (docs/images/default_reference.png).
+Reads the bag back from disk with the loader of ``strapdown-sim report``
+(:func:`strapdown_ros.report.data.load_bag`: Odometry and Imu of /reference), so the figure
+shows what a user of the dataset gets. Used for the README picture
+(docs/images/default_reference.png); ``strapdown-sim report`` draws the full set of plots.
 """
 
 from __future__ import annotations
@@ -17,23 +19,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from strapdown_ros.bag.reader import read_bag  # noqa: E402
-from strapdown_ros.core.earth import ned_velocity_from_ecef  # noqa: E402
-from strapdown_ros.core.exactness import stream_residuals  # noqa: E402
-from strapdown_ros.messages import navsatfix_geodetic, odometry_state, stream_from_messages  # noqa: E402
+from strapdown_ros.core.earth import dcm_ecef_to_ned  # noqa: E402
+from strapdown_ros.report.data import load_bag  # noqa: E402
 
 
 def main(bag: str, out: str) -> None:
-    contents = read_bag(bag)
-    stamps, lat, lon, alt = navsatfix_geodetic(contents["/reference/fix"])
-    t = (stamps - stamps[0]) * 1e-9
-    state = odometry_state(contents["/reference/odom"])
-    v_ned = ned_velocity_from_ecef(lat, lon, state.v_e)
-    stream = stream_from_messages(contents["/reference/imu"], contents["/reference/odom"])
-    res = stream_residuals(stream)
-    r_earth = 6378137.0
-    north = (lat - lat[0]) * r_earth
-    east = (lon - lon[0]) * r_earth * np.cos(lat[0])
+    # the report's loader: streams (geodetic, NED velocity), IMU topics and SPEC §3 residuals
+    data = load_bag(bag, allan=False)
+    ref = data.streams["/reference"]
+    t, alt, v_ned = ref.t, ref.alt, ref.v_ned
+    _, res = data.residuals["/reference"]
+    ned = (ref.r_e - ref.r_e[0]) @ dcm_ecef_to_ned(ref.lat[0], ref.lon[0]).T
+    north, east = ned[:, 0], ned[:, 1]
 
     fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
     ax[0, 0].plot(east / 1e3, north / 1e3)
@@ -45,7 +42,7 @@ def main(bag: str, out: str) -> None:
     ax[0, 1].plot(t, np.linalg.norm(v_ned[:, :2], axis=1), label="ground speed [m/s]")
     ax[0, 1].set(xlabel="time [s]", title="altitude and ground speed")
     ax[0, 1].legend()
-    f = contents["/reference/imu"].linear_acceleration
+    f = data.imus["/reference"].accel
     ax[1, 0].plot(t[1:], f[:, 0], lw=0.6, label="x (forward)")
     ax[1, 0].plot(t[1:], f[:, 1], lw=0.6, label="y (left)")
     ax[1, 0].plot(t[1:], f[:, 2], lw=0.6, label="z (up)")
@@ -66,7 +63,7 @@ def main(bag: str, out: str) -> None:
     )
     ax[1, 1].legend(markerscale=8)
     name = Path(bag).name
-    fig.suptitle(f"reference stream of {name}: {stream.cycles} cycles, read back from the bag")
+    fig.suptitle(f"reference stream of {name}: {res.position.size} cycles, read back from the bag")
     fig.tight_layout()
     fig.savefig(out, dpi=90)
 
