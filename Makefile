@@ -1,6 +1,6 @@
 # strapdown_ros developer entry points.  `make help` lists them.
 #
-#   make run    main job: generate the default scenario into out/default
+#   make run    main job: the live pipeline on the default scenario into out/default + report
 #   make test   the test command (ruff, then pytest); what CI runs (.ci/run)
 #
 # Everything runs in .venv, created from pinned requirements by `make setup` (incremental).
@@ -29,14 +29,15 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help setup test lint bench run clean distclean
+.PHONY: help setup test lint bench run generate clean distclean
 
 help:
 	@echo "make setup      create/update .venv (pinned deps, editable package, ament prefix)"
-	@echo "make run        generate the default scenario into out/default"
+	@echo "make run        live pipeline on the default scenario into out/default, then its report"
+	@echo "make generate   the same scenario offline into out/default_offline, then its report"
 	@echo "make test       ruff check + pytest (the CI command)"
 	@echo "make lint       ruff check only"
-	@echo "make bench      run every bench/bench_*.py"
+	@echo "make bench      install the bench extras (pyins) and run every bench/bench_*.py"
 	@echo "make clean      remove outputs and caches; make distclean also removes .venv"
 	@echo "PYTHON=$(PYTHON)"
 
@@ -65,7 +66,16 @@ test: setup
 	$(VPY) -m pytest $(PYTEST_ARGS) || exit $$?; \
 	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
 
-bench: setup
+# Benchmark-only dependencies (pyins for bench/bench_peers.py), pinned in requirements/bench.txt
+# and installed into .venv on top of the locked environment; `make test` does not need them.
+BENCH_REQUIREMENTS := requirements/bench.txt
+BENCH_STAMP        := $(VENV)/.bench.stamp
+
+$(BENCH_STAMP): $(SETUP_STAMP) $(BENCH_REQUIREMENTS) requirements/constraints.txt
+	$(VPY) -m pip install $(PIP_QUIET) -r $(BENCH_REQUIREMENTS) $(CONSTRAINTS)
+	@touch $@
+
+bench: setup $(BENCH_STAMP)
 	@found=0; \
 	for f in bench/bench_*.py; do \
 	    [ -e "$$f" ] || continue; found=1; \
@@ -73,8 +83,18 @@ bench: setup
 	done; \
 	[ $$found = 1 ] || echo "no bench/bench_*.py yet"
 
+# The main job: the live pipeline (nodes as processes over DDS, recorded into a bag) on the
+# default 10-minute flight at RUN_RATE_FACTOR x real time, then the report of the bag.
+RUN_RATE_FACTOR ?= 3
 run: setup
-	strapdown-sim generate config/scenarios/default.yaml --out out/default --force
+	strapdown-sim run config/scenarios/default.yaml --out out/default --force \
+	    --rate-factor $(RUN_RATE_FACTOR)
+	strapdown-sim report out/default
+
+# The same scenario computed offline (no ROS graph): identical messages, ~10 s.
+generate: setup
+	strapdown-sim generate config/scenarios/default.yaml --out out/default_offline --force
+	strapdown-sim report out/default_offline
 
 clean:
 	rm -rf out build install log .pytest_cache .ruff_cache *.egg-info

@@ -5,7 +5,9 @@ Subcommands:
 * ``generate SCENARIO --out DIR`` — every stream of the scenario, offline, into a rosbag2 dir;
 * ``validate SCENARIO`` — check a scenario file (and its overrides) without computing anything;
 * ``check DIR`` — re-verify the SPEC §3 exactness rule on a bag read back from disk;
-* ``run`` and ``report`` — planned (live pipeline, report of a bag).
+* ``run SCENARIO --out DIR`` — the live pipeline (nodes as processes) recorded into a bag;
+* ``replay DIR --into navigator --out OUT`` — a bag's IMU/truth into a live navigator_node;
+* ``bag repair DIR`` / ``bag info DIR`` — repair an interrupted recording; summarize a bag;
 
 Every command that takes a scenario takes ``--set dotted.key=value`` (value parsed as YAML,
 repeatable) and ``--duration S``. Exit status: 0 success, 1 failure while running, 2 invalid
@@ -68,13 +70,63 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--gravity-model", default="j2", help="gravitation model of the streams")
 
     run = sub.add_parser(
-        "run", help="(planned) run the live ROS 2 pipeline as separate processes and record a bag"
+        "run", help="run the live ROS 2 pipeline as separate processes and record a bag"
     )
     _add_scenario_args(run)
     run.add_argument("--out", required=True, help="output bag directory")
+    run.add_argument("--storage", choices=("mcap", "sqlite3"), default=None)
+    run.add_argument("--force", action="store_true", help="overwrite an existing output")
+    run.add_argument(
+        "--rate-factor", type=float, default=1.0, help="speed over real time (default 1)"
+    )
+    run.add_argument(
+        "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: private, from pid)"
+    )
+    run.add_argument("--timeout", type=float, default=None, metavar="S", help="give up after S s")
 
-    rep = sub.add_parser("report", help="(planned) summary table and plots of a recorded bag")
-    rep.add_argument("bag", help="bag directory")
+    rpl = sub.add_parser(
+        "replay",
+        help="play a bag's navigator input into a live navigator_node and record its output",
+    )
+    rpl.add_argument("bag", help="bag directory (e.g. written by generate or run)")
+    rpl.add_argument(
+        "--into", choices=("navigator",), default="navigator", help="node to replay into"
+    )
+    rpl.add_argument("--out", required=True, help="output bag directory (navigator topics)")
+    rpl.add_argument("--scenario", default=None, help="scenario whose navigator section to use")
+    rpl.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    rpl.add_argument("--rate-factor", type=float, default=1.0, help="speed over real time")
+    rpl.add_argument("--force", action="store_true", help="overwrite an existing output")
+    rpl.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID")
+
+    rep = sub.add_parser(
+        "report", help="write report.md and PNG plots of a recorded bag into DIR/report/"
+    )
+    rep.add_argument("bag", help="bag directory written by generate or run")
+    rep.add_argument("--out", default=None, help="output directory (default: BAG/report)")
+    rep.add_argument(
+        "--compare",
+        action="append",
+        default=[],
+        metavar="OTHER_BAG",
+        help="another bag of the same reference whose variation is compared with this one "
+        "(e.g. Method 1 vs Method 2; repeatable)",
+    )
+    rep.add_argument(
+        "--no-exactness", action="store_true", help="skip the SPEC §3 re-check of the streams"
+    )
+
+    bag = sub.add_parser("bag", help="bag utilities: repair an interrupted recording, info")
+    bag_sub = bag.add_subparsers(dest="bag_command", metavar="BAG_COMMAND", required=True)
+    bag_repair = bag_sub.add_parser(
+        "repair", help="rebuild metadata.yaml (and the mcap summary) of an interrupted recording"
+    )
+    bag_repair.add_argument("bag", help="bag directory")
+    bag_repair.add_argument(
+        "--force", action="store_true", help="rebuild the metadata even if the bag reads fine"
+    )
+    bag_info = bag_sub.add_parser("info", help="topics, types, message counts and duration")
+    bag_info.add_argument("bag", help="bag directory")
     return parser
 
 
@@ -166,6 +218,75 @@ def _check(args: argparse.Namespace) -> int:
     return status
 
 
+def _run(args: argparse.Namespace) -> int:
+    from strapdown_ros.pipeline import PipelineError, run_pipeline
+
+    try:
+        result = run_pipeline(
+            args.scenario, args.out, overrides=args.overrides, duration_s=args.duration,
+            storage=args.storage, force=args.force, rate_factor=args.rate_factor,
+            domain_id=args.domain_id, timeout_s=args.timeout,
+        )  # fmt: skip
+    except FileExistsError as exc:
+        print(f"strapdown-sim run: {exc}", file=sys.stderr)
+        return 2
+    except PipelineError as exc:
+        print(f"strapdown-sim run: {exc}\n--- log ---\n{exc.log}", file=sys.stderr)
+        return 1
+    print(result.format())
+    return 0 if not result.lost else 1
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from strapdown_ros.pipeline import PipelineError, replay_into_navigator
+
+    try:
+        result = replay_into_navigator(
+            args.bag, args.out, scenario_path=args.scenario, overrides=args.overrides,
+            rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
+        )  # fmt: skip
+    except FileExistsError as exc:
+        print(f"strapdown-sim replay: {exc}", file=sys.stderr)
+        return 2
+    except PipelineError as exc:
+        print(f"strapdown-sim replay: {exc}\n--- log ---\n{exc.log}", file=sys.stderr)
+        return 1
+    print(result.format())
+    return 0 if not result.mismatches else 1
+
+
+def _report(args: argparse.Namespace) -> int:
+    from strapdown_ros.report import ReportError, write_report
+
+    try:
+        result = write_report(
+            args.bag, args.out, compare=args.compare, exactness=not args.no_exactness
+        )
+    except ReportError as exc:
+        print(f"strapdown-sim report: {exc}", file=sys.stderr)
+        return 1
+    print(f"{result.markdown} ({len(result.plots)} plots, {result.elapsed_s:.1f} s)")
+    for name, path in result.plots.items():
+        print(f"  {name:<20} {path}")
+    for name, why in result.omitted.items():
+        print(f"  {name:<20} omitted: {why}")
+    return 0
+
+
+def _bag(args: argparse.Namespace) -> int:
+    from strapdown_ros.bag.repair import BagRepairError, bag_info, repair_bag
+
+    try:
+        if args.bag_command == "repair":
+            print(repair_bag(args.bag, force=args.force).format())
+        else:
+            print(bag_info(args.bag))
+    except BagRepairError as exc:
+        print(f"strapdown-sim bag {args.bag_command}: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``strapdown-sim``; return the process exit status."""
     args = build_parser().parse_args(argv)
@@ -174,8 +295,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _generate(args)
         if args.command == "validate":
             return _validate(args)
+        if args.command == "run":
+            return _run(args)
+        if args.command == "replay":
+            return _replay(args)
         if args.command == "check":
             return _check(args)
+        if args.command == "report":
+            return _report(args)
+        if args.command == "bag":
+            return _bag(args)
     except ScenarioError as exc:
         print(f"strapdown-sim {args.command}: invalid scenario: {exc}", file=sys.stderr)
         return 2
