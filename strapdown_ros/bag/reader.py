@@ -22,7 +22,7 @@ from rosbags.rosbag2 import Reader
 
 from strapdown_ros.bag import cdr
 
-__all__ = ["BagContents", "BagReadError", "TopicData", "read_bag"]
+__all__ = ["BagContents", "BagReadError", "TopicData", "check_bag", "read_bag"]
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -90,7 +90,7 @@ def _load_metadata(path: Path) -> dict:
     if not meta_path.is_file():
         raise BagReadError(
             f"{path} has no metadata.yaml: not a rosbag2 directory, or its recording was "
-            "interrupted (`ros2 bag reindex` can rebuild the metadata)"
+            f"interrupted (`strapdown-sim bag repair {path}` rebuilds the metadata)"
         )
     try:
         doc = yaml.safe_load(meta_path.read_text(encoding="utf-8"))
@@ -125,13 +125,18 @@ def _check_files(path: Path, info: dict) -> list[Path]:
             if size < 2 * len(_MCAP_MAGIC) or tail != _MCAP_MAGIC:
                 raise BagReadError(
                     f"bag {path}: {f.name} is truncated ({size} bytes, no MCAP end magic); the "
-                    "recording was probably interrupted"
+                    f"recording was probably interrupted (`strapdown-sim bag repair {path}`)"
                 )
         else:
             with f.open("rb") as fh:
                 head = fh.read(100)
             if head[:16] != _SQLITE_MAGIC:
                 raise BagReadError(f"bag {path}: {f.name} is not an SQLite database")
+            if f.with_name(f.name + "-journal").exists():
+                raise BagReadError(
+                    f"bag {path}: {f.name} has a rollback journal ({f.name}-journal): its "
+                    f"recording was interrupted (`strapdown-sim bag repair {path}`)"
+                )
             page = int.from_bytes(head[16:18], "big")
             page = 65536 if page == 1 else page
             pages = int.from_bytes(head[28:32], "big")
@@ -140,6 +145,18 @@ def _check_files(path: Path, info: dict) -> list[Path]:
                     f"bag {path}: {f.name} is truncated ({size} bytes, header says {page * pages})"
                 )
     return files
+
+
+def check_bag(path: str | os.PathLike[str]) -> tuple[dict, list[Path]]:
+    """Check a bag directory as :func:`read_bag` does, without reading messages.
+
+    Returns the ``rosbag2_bagfile_information`` mapping of ``metadata.yaml`` and the data
+    files; raises :class:`BagReadError` (missing directory or metadata, unsupported storage,
+    missing, truncated or interrupted data file).
+    """
+    path = Path(path)
+    info = _load_metadata(path)
+    return info, _check_files(path, info)
 
 
 def read_bag(

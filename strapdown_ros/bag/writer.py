@@ -40,11 +40,13 @@ __all__ = [
     "BAG_VERSION",
     "DEFAULT_QOS",
     "STORAGES",
+    "TYPESTORE",
     "Batch",
     "BagWriter",
     "BagWriteError",
     "batch",
     "clock_batch",
+    "looks_like_bag",
     "stream_batches",
     "write_stream_topics",
 ]
@@ -72,6 +74,8 @@ DEFAULT_QOS = Qos(
 )
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+#: The ROS 2 Jazzy type store of ``rosbags`` (message definitions, type hashes).
+TYPESTORE = _TYPESTORE
 
 
 class BagWriteError(RuntimeError):
@@ -82,6 +86,11 @@ def _looks_like_bag(path: Path) -> bool:
     if (path / "metadata.yaml").is_file():
         return True
     return any(p.suffix in {".mcap", ".db3"} for p in path.iterdir())
+
+
+def looks_like_bag(path: Path) -> bool:
+    """True when the directory ``path`` has a ``metadata.yaml`` or a ``.mcap``/``.db3`` file."""
+    return _looks_like_bag(path)
 
 
 class BagWriter:

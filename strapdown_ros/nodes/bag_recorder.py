@@ -1,0 +1,464 @@
+"""``bag_recorder``: records topics into a rosbag2 directory, durable up to the last flush.
+
+It subscribes raw (serialized payloads, nothing is deserialized) to a configured topic list —
+by default every topic of SPEC §4 the scenario produces (:func:`strapdown_ros.topics.
+produced_topics`) — and writes the payloads with :class:`~strapdown_ros.bag.recording.Recording`
+into an mcap (default) or sqlite3 bag: Fast DDS' trailing alignment padding is stripped and the
+log time is the header stamp, so the bag's messages are byte-identical to what
+``strapdown-sim generate`` writes for the same scenario. Topics are subscribed when their first
+publisher is discovered, with a QoS matching the publishers' (``qos_reliability: auto``:
+RELIABLE when every publisher is, TRANSIENT_LOCAL likewise) and a deep queue; the publishers'
+offered QoS profiles are stored in the bag. Callbacks run on rclpy's ``EventsExecutor``
+(spun with ``spin_once``), which takes tens of thousands of messages per second.
+
+The bag is flushed every ``flush_period_s`` (mcap: the chunk is closed and written; sqlite3:
+the transaction is committed); after a SIGKILL everything flushed can be recovered with
+``strapdown-sim bag repair DIR``. On SIGINT/SIGTERM (or ``max_duration_s``, or
+``stop_when_done``) the recorder takes what is still queued, closes the bag (summary and
+``metadata.yaml``) and logs the message count of every topic. Parameters: docs/recording.md.
+
+Exit status: 0 recorded (also when stopped by a signal), 1 failure while recording (e.g. a write
+error; the bag is closed as far as possible), 2 invalid parameter or scenario.
+"""
+
+from __future__ import annotations
+
+import gc
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+
+from strapdown_ros.bag.incremental import IncrementalBagWriter
+from strapdown_ros.bag.payload import PayloadError, PayloadInspector
+from strapdown_ros.bag.recording import LOG_TIMES, Handler, Recording
+from strapdown_ros.bag.writer import STORAGES, BagWriteError, looks_like_bag
+from strapdown_ros.nodes._common import (
+    EXIT_FAILURE,
+    EXIT_OK,
+    ParameterError,
+    declare_bool,
+    declare_int,
+    declare_number,
+    declare_string,
+    declare_string_array,
+    message_class,
+    run_node,
+)
+from strapdown_ros.scenario import load_scenario
+from strapdown_ros.topics import produced_topics, spec_topics
+
+NODE_NAME = "bag_recorder"
+RELIABILITIES = ("auto", "reliable", "best_effort")
+#: After a stop request: spin until a pass brings no message (but at most drain_timeout_s).
+QUIET_S = 0.05
+
+
+@dataclass
+class _Topic:
+    """One recorded topic: its type, subscription and publishers seen."""
+
+    name: str
+    msgtype: str | None
+    subscription: object | None = None
+    handler: Handler | None = None
+    offered: list[Qos] = field(default_factory=list)
+    warned: set[str] = field(default_factory=set)
+
+
+class BagRecorder(Node):
+    """Records a topic list into a rosbag2 directory (see the module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        scenario_path = declare_string(self, "scenario", "", "scenario YAML file (topic list)")
+        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
+        topic_specs = declare_string_array(self, "topics", "topics to record: NAME[=pkg/msg/Type]")
+        output = declare_string(self, "output", "", "bag directory to write (required)")
+        storage = declare_string(self, "storage", "", "mcap | sqlite3 (default: scenario's)")
+        self.force = declare_bool(self, "force", False, "replace an existing bag directory")
+        self.flush_period_s = declare_number(self, "flush_period_s", 1.0, "seconds per flush")
+        self.fsync = declare_bool(self, "fsync", False, "fsync the data file at every flush")
+        self.log_time = declare_string(self, "log_time", "header", "header | receive")
+        self.reliability = declare_string(
+            self, "qos_reliability", "auto", "auto | reliable | best_effort"
+        )
+        self.depth = declare_int(
+            self, "qos_depth", 0, "subscription queue depth; 0 = KEEP_ALL", minimum=0
+        )
+        self.discovery_period_s = declare_number(
+            self, "discovery_period_s", 0.1, "seconds between looks for new publishers"
+        )
+        self.max_duration_s = declare_number(
+            self, "max_duration_s", 0.0, "stop after this many seconds; 0 = until a signal"
+        )
+        self.stop_when_done = declare_bool(
+            self, "stop_when_done", False, "stop when every recorded topic lost its publishers"
+        )
+        self.progress_period_s = declare_number(
+            self, "progress_period_s", 10.0, "seconds between progress lines; 0 = none"
+        )
+        self.drain_timeout_s = declare_number(
+            self, "drain_timeout_s", 2.0, "at a stop, longest time taking queued messages"
+        )
+        if not output:
+            raise ParameterError("output", "is required (the bag directory to write)")
+        for name, value in (
+            ("flush_period_s", self.flush_period_s),
+            ("discovery_period_s", self.discovery_period_s),
+        ):
+            if value <= 0:
+                raise ParameterError(name, f"must be > 0, got {value}")
+        for name, value in (
+            ("max_duration_s", self.max_duration_s),
+            ("progress_period_s", self.progress_period_s),
+            ("drain_timeout_s", self.drain_timeout_s),
+        ):
+            if value < 0:
+                raise ParameterError(name, f"must be >= 0, got {value}")
+        if self.log_time not in LOG_TIMES:
+            raise ParameterError(
+                "log_time", f"must be one of: {', '.join(LOG_TIMES)}; got {self.log_time!r}"
+            )
+        if self.reliability not in RELIABILITIES:
+            raise ParameterError(
+                "qos_reliability",
+                f"must be one of: {', '.join(RELIABILITIES)}; got {self.reliability!r}",
+            )
+
+        scenario = load_scenario(scenario_path, overrides) if scenario_path else None
+        if storage == "":
+            storage = scenario.recording.storage if scenario is not None else "mcap"
+        if storage not in STORAGES:
+            raise ParameterError("storage", f"must be one of: mcap, sqlite3; got {storage!r}")
+        self.storage = storage
+        self.output = Path(output).absolute()
+        if self.output.exists() and not self.force:
+            raise ParameterError("output", f"{self.output} exists already (set force:=true)")
+        if self.output.exists() and not _replaceable(self.output):
+            raise ParameterError("output", f"{self.output} exists and is not a bag directory")
+
+        if topic_specs:
+            wanted = _parse_topics(topic_specs)
+        elif scenario is not None:
+            wanted = dict(produced_topics(scenario))
+        else:
+            wanted = dict(spec_topics())
+        self.topics: dict[str, _Topic] = {}
+        for name, msgtype in wanted.items():
+            if msgtype is not None:
+                self._check_type("topics", name, msgtype)
+            self.topics[name] = _Topic(name, msgtype)
+        self.custom_data = {"generator": "strapdown_ros", "recorder": NODE_NAME}
+        if scenario is not None:
+            self.custom_data["scenario"] = scenario.name
+        self.recording: Recording | None = None
+        self._stop_reason: str | None = None
+        self.get_logger().info(
+            f"recording {len(self.topics)} topic(s) into {self.output} ({self.storage}), "
+            f"flush every {self.flush_period_s:g} s: " + ", ".join(self.topics)
+        )
+
+    @staticmethod
+    def _check_type(param: str, topic: str, msgtype: str) -> None:
+        try:
+            message_class(msgtype)
+            PayloadInspector(msgtype)
+        except (ValueError, PayloadError) as exc:
+            raise ParameterError(param, f"{topic}: {exc}") from exc
+
+    # -- discovery and subscriptions -----------------------------------------------------------
+
+    def _discover(self) -> None:
+        """Subscribe to topics whose first publisher appeared; warn about incompatible ones."""
+        names_types = None
+        for t in self.topics.values():
+            infos = self.get_publishers_info_by_topic(t.name)
+            if t.subscription is not None:
+                self._check_new_publishers(t, infos)
+                continue
+            if not infos and self.reliability == "auto":
+                continue
+            if t.msgtype is None:
+                if names_types is None:
+                    names_types = dict(self.get_topic_names_and_types())
+                types = names_types.get(t.name, [])
+                if len(types) != 1:
+                    continue  # not discovered yet (or ambiguous: warned below when it matters)
+                t.msgtype = types[0]
+            graph_types = {i.topic_type for i in infos}
+            if graph_types and graph_types != {t.msgtype}:
+                self._warn_once(
+                    t, "type", f"{t.name}: publishers offer {sorted(graph_types)}, recording "
+                    f"{t.msgtype} only; not subscribing"
+                )
+                continue
+            self._subscribe(t, infos)
+
+    def _subscribe(self, t: _Topic, infos: list) -> None:
+        assert self.recording is not None and t.msgtype is not None
+        qos = self._subscription_qos(infos)
+        t.offered = _distinct([_offered_qos(i.qos_profile) for i in infos])
+        try:
+            t.handler = self.recording.handler(t.name, t.msgtype, lambda t=t: self._offered(t))
+        except PayloadError as exc:
+            self._warn_once(t, "inspector", f"{t.name}: cannot record {t.msgtype}: {exc}")
+            return
+        handler, clock = t.handler, self.get_clock()
+
+        def on_message(payload: bytes) -> None:
+            handler(payload, clock.now().nanoseconds)
+
+        t.subscription = self.create_subscription(
+            message_class(t.msgtype), t.name, on_message, qos, raw=True
+        )
+        self.get_logger().info(
+            f"subscribed to {t.name} ({t.msgtype}, {_describe_qos(qos)}, "
+            f"{len(infos)} publisher(s))"
+        )
+
+    def _offered(self, t: _Topic) -> list[Qos]:
+        """Offered QoS profiles to store for ``t`` (asked for with its first message)."""
+        if not t.offered:  # subscribed before any publisher was seen
+            infos = self.get_publishers_info_by_topic(t.name)
+            t.offered = _distinct([_offered_qos(i.qos_profile) for i in infos])
+        return t.offered
+
+    def _subscription_qos(self, infos: list) -> QoSProfile:
+        if self.reliability == "auto":
+            reliable = all(
+                i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos
+            )
+        else:
+            reliable = self.reliability == "reliable"
+        transient = bool(infos) and all(
+            i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos
+        )
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_ALL if self.depth == 0 else HistoryPolicy.KEEP_LAST,
+            depth=max(self.depth, 1),
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE,
+        )
+
+    def _check_new_publishers(self, t: _Topic, infos: list) -> None:
+        sub_qos = t.subscription.qos_profile  # type: ignore[attr-defined]
+        for i in infos:
+            if (
+                sub_qos.reliability == ReliabilityPolicy.RELIABLE
+                and i.qos_profile.reliability != ReliabilityPolicy.RELIABLE
+            ):
+                self._warn_once(
+                    t, f"qos:{i.node_namespace}/{i.node_name}",
+                    f"{t.name}: publisher {i.node_name} is BEST_EFFORT but the recorder "
+                    "subscribed RELIABLE: its messages are not recorded",
+                )
+
+    def _warn_once(self, t: _Topic, key: str, text: str) -> None:
+        if key not in t.warned:
+            t.warned.add(key)
+            self.get_logger().warning(text)
+
+    def _publishers_gone(self) -> bool:
+        subscribed = [t for t in self.topics.values() if t.subscription is not None]
+        return bool(subscribed) and all(
+            t.subscription.get_publisher_count() == 0  # type: ignore[attr-defined]
+            for t in subscribed
+        )
+
+    # -- main loop -----------------------------------------------------------------------------
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        if self._stop_reason is None:
+            self._stop_reason = signal.Signals(signum).name
+        else:  # a second signal: stop draining
+            self.drain_timeout_s = 0.0
+
+    def run(self, executor) -> int:
+        """Record until a signal, ``max_duration_s`` or ``stop_when_done``; return the status."""
+        events = _events_executor(self, executor)
+        executor = events or executor
+        # Our own handlers: a signal only sets a flag, so that the queued messages are still
+        # taken and the bag is closed properly (rclpy's would shut the context down first).
+        from rclpy.signals import uninstall_signal_handlers
+
+        uninstall_signal_handlers()
+        signal.signal(signal.SIGINT, self._on_signal)
+        signal.signal(signal.SIGTERM, self._on_signal)
+
+        try:
+            writer = IncrementalBagWriter(
+                self.output,
+                storage=self.storage,
+                force=self.force,
+                custom_data=self.custom_data,
+                fsync=self.fsync,
+            ).open()
+        except BagWriteError as exc:
+            self.get_logger().error(f"cannot create the bag: {exc}")
+            return EXIT_FAILURE
+        self.recording = Recording(
+            writer, log_time=self.log_time, flush_period_s=self.flush_period_s
+        )
+        gc.collect()
+        gc.freeze()  # long-lived objects out of the collector's full passes (shorter pauses)
+        status = EXIT_OK
+        start = time.monotonic()
+        try:
+            status = self._record(executor, start)
+        except BagWriteError as exc:
+            self.get_logger().error(f"recording failed: {exc}")
+            status = EXIT_FAILURE
+        finally:
+            self._close(time.monotonic() - start)
+            if events is not None:
+                events.remove_node(self)
+                events.shutdown()
+        return status
+
+    def _record(self, executor, start: float) -> int:
+        recording = self.recording
+        assert recording is not None
+        next_discovery = next_progress = time.monotonic()
+        while self._stop_reason is None:
+            executor.spin_once(timeout_sec=0.05)
+            now = time.monotonic()
+            recording.tick()
+            if now >= next_discovery:
+                self._discover()
+                next_discovery = now + self.discovery_period_s
+                if self.stop_when_done and self._publishers_gone():
+                    self._stop_reason = "every publisher is gone"
+            if self.progress_period_s > 0 and now >= next_progress:
+                if now > start:
+                    self._log_progress()
+                next_progress = now + self.progress_period_s
+            if self.max_duration_s > 0 and now - start >= self.max_duration_s:
+                self._stop_reason = f"max_duration_s = {self.max_duration_s:g} s"
+        self.get_logger().info(f"stopping ({self._stop_reason}); taking queued messages")
+        deadline = time.monotonic() + self.drain_timeout_s
+        while time.monotonic() < deadline:
+            before = recording.message_count
+            executor.spin_once(timeout_sec=QUIET_S)
+            if recording.message_count == before:
+                break
+        return EXIT_OK
+
+    def _log_progress(self) -> None:
+        rec = self.recording
+        assert rec is not None
+        flushed = rec.flushed_counts
+        self.get_logger().info(
+            f"progress: {rec.message_count} messages received, {sum(flushed.values())} flushed "
+            "(" + ", ".join(f"{t} {n}" for t, n in flushed.items()) + ")"
+        )
+
+    def _close(self, elapsed: float) -> None:
+        rec = self.recording
+        if rec is None:
+            return
+        try:
+            path = rec.close()
+        except BagWriteError as exc:
+            self.get_logger().error(
+                f"cannot finish the bag: {exc}; `strapdown-sim bag repair {self.output}` "
+                "recovers what was flushed"
+            )
+            return
+        total = rec.message_count
+        span = rec.receive_span_s
+        lines = [
+            f"recorded {total} messages on {len(rec.stats)} topic(s) in {elapsed:.3f} s into "
+            f"{path}; first to last message {span:.3f} s ({total / max(span, 1e-9):.0f} msgs/s)",
+            *rec.summary(),
+        ]
+        silent = [t for t in self.topics if t not in rec.stats or rec.stats[t].count == 0]
+        if silent:
+            lines.append("no messages on: " + ", ".join(silent))
+        self.get_logger().info("\n".join(lines))
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _replaceable(path: Path) -> bool:
+    """An empty directory or a bag directory (what ``force`` may replace)."""
+    return path.is_dir() and not path.is_symlink() and (
+        not any(path.iterdir()) or looks_like_bag(path)
+    )
+
+
+def _parse_topics(specs: list[str]) -> dict[str, str | None]:
+    out: dict[str, str | None] = {}
+    for spec in specs:
+        name, sep, msgtype = spec.partition("=")
+        name, msgtype = name.strip(), msgtype.strip()
+        if not name.startswith("/"):
+            raise ParameterError("topics", f"{spec!r}: topic names must be absolute (/name)")
+        if sep and not msgtype:
+            raise ParameterError("topics", f"{spec!r}: empty type after '='")
+        if name in out:
+            raise ParameterError("topics", f"{name} is listed twice")
+        out[name] = msgtype or None
+    return out
+
+
+def _qos_time(d) -> QosTime:
+    ns = int(d.nanoseconds)
+    return QosTime(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
+
+
+def _offered_qos(q) -> Qos:
+    """A publisher's QoS as seen in the ROS graph, as rosbag2 stores it."""
+    return Qos(
+        history=QosHistory(int(q.history)),
+        depth=int(q.depth),
+        reliability=QosReliability(int(q.reliability)),
+        durability=QosDurability(int(q.durability)),
+        deadline=_qos_time(q.deadline),
+        lifespan=_qos_time(q.lifespan),
+        liveliness=QosLiveliness(int(q.liveliness)),
+        liveliness_lease_duration=_qos_time(q.liveliness_lease_duration),
+        avoid_ros_namespace_conventions=bool(q.avoid_ros_namespace_conventions),
+    )
+
+
+def _distinct(profiles: list[Qos]) -> list[Qos]:
+    out: list[Qos] = []
+    for p in profiles:
+        if p not in out:
+            out.append(p)
+    return out
+
+
+def _describe_qos(q: QoSProfile) -> str:
+    history = "KEEP_ALL" if q.history == HistoryPolicy.KEEP_ALL else f"KEEP_LAST({q.depth})"
+    return f"{q.reliability.name}, {q.durability.name}, {history}"
+
+
+def _events_executor(node: Node, default):
+    """Move ``node`` to a new rclpy EventsExecutor (None when rclpy has none)."""
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError:  # pragma: no cover - older rclpy
+        return None
+    default.remove_node(node)
+    executor = EventsExecutor(context=node.context)
+    executor.add_node(node)
+    return executor
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the recorder; return the exit status (0 recorded, 1 failure, 2 invalid input)."""
+    return run_node(BagRecorder, NODE_NAME, args)

@@ -1,0 +1,272 @@
+"""bag_player publishes a bag's messages over real DDS with the original timing.
+
+A bag written by ``strapdown-sim generate`` is played by ``bag_player`` (its own process, this
+session's ROS domain) to a raw subscriber process (test/ros_helpers/raw_recorder.py): every
+payload arrives byte-identical (up to Fast DDS' 4-byte padding), in order, paced by the log
+times (``rate_factor``, ``start_offset_s``), with topic selection, remapping, ``/clock`` and
+``loop``; the player reports its pacing error (p50, p99, max). A missing directory, an
+interrupted recording, a truncated data file, an unknown topic are refused (exit 2) with a
+message saying why; an empty bag is reported (exit 0); data found corrupt midway stops the
+player (exit 1). Every wait has a timeout; children still running at the end are killed.
+"""
+
+from __future__ import annotations
+
+import pickle
+import re
+import signal
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
+
+from node_testing import Proc, executable, padded  # noqa: E402
+
+from strapdown_ros.bag.incremental import IncrementalBagWriter  # noqa: E402
+from strapdown_ros.bag.playback import clock_payload  # noqa: E402
+from strapdown_ros.bag.reader import read_bag  # noqa: E402
+from strapdown_ros.bag.writer import BagWriter  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
+REFERENCE = ["variation=null", "navigator=null", "imu_errors=null"]
+TYPES = {
+    "/reference/imu": "sensor_msgs/msg/Imu",
+    "/reference/odom": "nav_msgs/msg/Odometry",
+    "/reference/fix": "sensor_msgs/msg/NavSatFix",
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/played/imu": "sensor_msgs/msg/Imu",  # /reference/imu remapped
+}
+TIMEOUT_S = 60.0
+PACING = re.compile(r"pacing error over (\d+) messages: p50 (\S+) ms, p99 (\S+) ms, max (\S+) ms")
+
+
+def _generate(out: Path, *overrides: str, duration_s: float = 2.0):
+    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
+    cmd += ["--duration", str(duration_s), "--quiet"]
+    for o in (*REFERENCE, *overrides):
+        cmd += ["--set", o]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return read_bag(out, raw=True)
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    """Reference stream, 2 s at 200 Hz, no /clock in the bag."""
+    return _generate(tmp_path_factory.mktemp("gen") / "bag")
+
+
+def _player_args(*params: str) -> list[str]:
+    args = [executable("bag_player"), "--ros-args"]
+    for p in params:
+        args += ["-p", p]
+    return args
+
+
+def _play(procs, ros_env, tmp_path, counts: dict[str, int], *params: str):
+    """Run raw_recorder on ``counts`` and the player; return the recording and the player."""
+    deadline = time.monotonic() + TIMEOUT_S
+    out = tmp_path / "recording.pkl"
+    rec_args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
+    for topic, n in counts.items():
+        rec_args += ["--topic", f"{topic}={TYPES[topic]}={n}"]
+    recorder = Proc(rec_args, ros_env, tmp_path, "raw_recorder")
+    procs.append(recorder)
+    player = Proc(
+        _player_args("wait_for_subscribers:=1", *params), ros_env, tmp_path, "bag_player"
+    )
+    procs.append(player)
+    assert player.wait(deadline) == 0, player.describe() + recorder.describe()
+    assert recorder.wait(deadline) == 0, recorder.describe() + player.describe()
+    assert "Traceback" not in player.output, player.describe()
+    with open(out, "rb") as f:
+        return pickle.load(f), player
+
+
+def _pacing(player: Proc) -> tuple[int, float, float, float]:
+    match = PACING.search(player.output)
+    assert match, player.describe()
+    n, p50, p99, worst = match.groups()
+    return int(n), float(p50), float(p99), float(worst)
+
+
+def test_plays_every_message_with_the_original_timing(bag, procs, ros_env, tmp_path):
+    counts = {"/reference/imu": 400, "/reference/odom": 401, "/reference/fix": 401, "/clock": 401}
+    recording, player = _play(procs, ros_env, tmp_path, counts, f"bag:={bag.path}")
+    for topic in ("/reference/imu", "/reference/odom", "/reference/fix"):
+        got = recording["topics"][topic]
+        want = bag.topics[topic].payloads
+        assert got == [padded(p) for p in want], topic
+    # /clock: the log time before the first message of each new log time
+    stamps = np.unique(np.concatenate([d.log_time_ns for d in bag.topics.values()]))
+    assert recording["topics"]["/clock"] == [clock_payload(t) for t in stamps.tolist()]
+    # paced in real time: 400 IMU messages 5 ms apart span 1.995 s of wall time
+    arrival = np.asarray(recording["arrival"]["/reference/imu"])
+    assert 1.9 < arrival[-1] - arrival[0] < 2.4, arrival[-1] - arrival[0]
+    assert re.search(r"played 1202 messages in \d+\.\d+ s", player.output), player.describe()
+    n, p50, p99, worst = _pacing(player)
+    assert n == 1202 and 0 <= p50 <= p99 <= worst
+    assert "/clock: 401 (clock)" in player.output and "/reference/fix: 401" in player.output
+
+
+def test_topic_selection_remap_offset_and_rate(bag, procs, ros_env, tmp_path):
+    """/reference/imu only, renamed, from 1 s on (stamps 1.000..2.000 s: 201 messages), twice
+    as fast: 1 s of data in 0.5 s."""
+    recording, player = _play(
+        procs, ros_env, tmp_path, {"/played/imu": 201, "/clock": 201},
+        f"bag:={bag.path}", "topics:=['/reference/imu']", "remap:=['/reference/imu:=/played/imu']",
+        "start_offset_s:=1.0", "rate_factor:=2.0",
+    )  # fmt: skip
+    assert recording["topics"]["/played/imu"] == bag.topics["/reference/imu"].payloads[199:]
+    arrival = np.asarray(recording["arrival"]["/played/imu"])
+    assert 0.45 < arrival[-1] - arrival[0] < 0.8, arrival[-1] - arrival[0]
+    assert "/reference/imu -> /played/imu" in player.output, player.describe()
+    assert _pacing(player)[0] == 201
+
+
+def test_bag_with_clock_plays_its_own(procs, ros_env, tmp_path):
+    with_clock = _generate(tmp_path / "gen", "recording.clock=true", duration_s=1.0)
+    recording, player = _play(
+        procs, ros_env, tmp_path, {"/clock": 201, "/reference/imu": 200},
+        f"bag:={with_clock.path}", "rate_factor:=0.0", "topics:=['/clock', '/reference/imu']",
+    )  # fmt: skip
+    assert recording["topics"]["/clock"] == with_clock.topics["/clock"].payloads
+    assert "the bag has /clock: it is played as recorded" in player.output, player.describe()
+    assert "rate_factor <= 0: not paced" in player.output, player.describe()
+
+
+def test_loop_until_sigint(bag, procs, ros_env, tmp_path):
+    deadline = time.monotonic() + TIMEOUT_S
+    player = Proc(
+        _player_args(f"bag:={bag.path}", "loop:=true", "rate_factor:=4.0",
+                     "topics:=['/reference/imu']", "publish_clock:=false"),  # fmt: skip
+        ros_env, tmp_path, "bag_player",
+    )  # fmt: skip
+    procs.append(player)
+    player.wait_for(r"loop True", deadline)
+    time.sleep(2.0)  # a 2 s bag at 4x: a pass takes 0.5 s (after the reader's start-up)
+    player.proc.send_signal(signal.SIGINT)
+    assert player.wait(deadline) == 0, player.describe()
+    match = re.search(r"played (\d+) messages in \S+ s, (\d+) loop\(s\) \(stopped: SIGINT\)",
+                      player.output)  # fmt: skip
+    assert match, player.describe()
+    played, loops = int(match.group(1)), int(match.group(2))
+    assert loops >= 1 and played > 400, player.describe()
+    assert "Traceback" not in player.output
+
+
+def test_realtime_priority(bag, ros_env):
+    """SCHED_FIFO for the publishing thread when allowed; otherwise a warning, same result."""
+    rc, out = _refused(
+        ros_env, f"bag:={bag.path}", "rate_factor:=4.0", "realtime_priority:=10",
+        "topics:=['/reference/imu']",
+    )  # fmt: skip
+    assert rc == 0, out
+    assert re.search(r"publishing thread on SCHED_FIFO priority 10|cannot use SCHED_FIFO", out)
+    assert "played 400 messages" in out and PACING.search(out), out
+
+
+def _refused(ros_env, *params: str) -> tuple[int, str]:
+    proc = subprocess.run(
+        _player_args(*params), env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
+    )
+    output = proc.stdout + proc.stderr
+    assert "Traceback" not in output, output
+    return proc.returncode, output
+
+
+def test_missing_bag_is_refused(ros_env, tmp_path):
+    rc, out = _refused(ros_env, f"bag:={tmp_path / 'nothing'}")
+    assert rc == 2, out
+    assert re.search(r"parameter 'bag': bag directory \S+nothing does not exist", out), out
+    rc, out = _refused(ros_env)
+    assert rc == 2 and "parameter 'bag': is required" in out, out
+
+
+def test_empty_bag_plays_nothing(ros_env, tmp_path):
+    with BagWriter(tmp_path / "empty"):
+        pass
+    rc, out = _refused(ros_env, f"bag:={tmp_path / 'empty'}")
+    assert rc == 0, out
+    assert re.search(r"bag \S+empty has no messages: nothing to play", out), out
+    assert "played" not in out
+    # a topic without messages
+    with BagWriter(tmp_path / "silent") as w:
+        w.add_topic("/reference/imu", "sensor_msgs/msg/Imu")
+    rc, out = _refused(ros_env, f"bag:={tmp_path / 'silent'}")
+    assert rc == 0 and "has no messages: nothing to play" in out, out
+
+
+def test_truncated_bag_is_refused(bag, ros_env, tmp_path):
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    (cut / "metadata.yaml").write_bytes((bag.path / "metadata.yaml").read_bytes())
+    data = (bag.path / "bag.mcap").read_bytes()
+    (cut / "bag.mcap").write_bytes(data[: len(data) // 2])
+    rc, out = _refused(ros_env, f"bag:={cut}")
+    assert rc == 2, out
+    assert re.search(r"bag\.mcap is truncated \(\d+ bytes, no MCAP end magic\)", out), out
+    assert f"strapdown-sim bag repair {cut}" in out, out
+
+
+def test_interrupted_recording_is_refused(bag, ros_env, tmp_path):
+    """A recorder killed before closing: no metadata.yaml; then repaired, it plays."""
+    rec = IncrementalBagWriter(tmp_path / "rec").open()
+    imu = bag.topics["/reference/imu"]
+    rec.add_topic("/reference/imu", imu.msgtype)
+    for t, p in zip(imu.log_time_ns.tolist(), imu.payloads, strict=True):
+        rec.write("/reference/imu", t, p)
+    rec.flush()
+    rec.abort()
+    rc, out = _refused(ros_env, f"bag:={tmp_path / 'rec'}")
+    assert rc == 2, out
+    assert "has no metadata.yaml" in out and "strapdown-sim bag repair" in out, out
+    subprocess.run(
+        [executable("strapdown-sim"), "bag", "repair", str(tmp_path / "rec")],
+        check=True, capture_output=True, timeout=60,
+    )  # fmt: skip
+    rc, out = _refused(ros_env, f"bag:={tmp_path / 'rec'}", "rate_factor:=0.0")
+    assert rc == 0 and "played 400 messages" in out, out
+
+
+def test_corrupt_data_stops_the_player(bag, ros_env, tmp_path):
+    """A message record inside a chunk claims more bytes than the chunk has: exit 1, no crash."""
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "metadata.yaml").write_bytes((bag.path / "metadata.yaml").read_bytes())
+    data = bytearray((bag.path / "bag.mcap").read_bytes())
+    pos = data.index(b"\x05", data.index(b"\x06", 8) + 60)  # a record in the first chunk
+    while struct.unpack_from("<Q", data, pos + 1)[0] > 2000:  # find a message record start
+        pos = data.index(b"\x05", pos + 1)
+    struct.pack_into("<Q", data, pos + 1, 1 << 40)
+    (bad / "bag.mcap").write_bytes(bytes(data))
+    rc, out = _refused(ros_env, f"bag:={bad}", "rate_factor:=0.0")
+    assert rc in (1, 2), out  # found when opening (2) or while playing (1)
+    assert re.search(r"bag \S+bad|cannot open bag", out), out
+    assert re.search(r"truncated or corrupt|became unreadable", out), out
+
+
+@pytest.mark.parametrize(
+    ("params", "expected"),
+    [
+        (["topics:=['/nope']"], r"has no topic\(s\) \['/nope'\]"),
+        (["remap:=['/reference/imu']"], r"parameter 'remap': '/reference/imu': expected FROM:=TO"),
+        (["remap:=['/nope:=/x']"], r"cannot remap \['/nope'\]"),
+        (["start_offset_s:=5.0"], r"parameter 'start_offset_s': 5 s is beyond the bag's 2 s"),
+        (["start_offset_s:=-1.0"], r"parameter 'start_offset_s': must be >= 0"),
+        (["realtime_priority:=100"], r"parameter 'realtime_priority': must be 0 \(off\) or"),
+    ],
+    ids=["topic", "remap-syntax", "remap-topic", "offset", "negative-offset", "rt"],
+)
+def test_invalid_parameters_exit_2(params, expected, bag, ros_env):
+    rc, out = _refused(ros_env, f"bag:={bag.path}", *params)
+    assert rc == 2, out
+    assert re.search(expected, out), out
