@@ -77,6 +77,7 @@ __all__ = [
     "StreamError",
     "initial_state_from_scenario",
     "initial_state_from_truth",
+    "navigate_messages",
     "navigator_settings",
     "parse_navigator",
 ]
@@ -601,3 +602,35 @@ def _concat(parts: list[NavSolution]) -> NavSolution:
           ("t", "lat", "lon", "alt", "v_ned", "q_b_n")),
         parts[0].n,
     )  # fmt: skip
+
+
+def navigate_messages(
+    settings: NavigatorSettings,
+    imu: Any,
+    truth: Any | None,
+    earth_frame: str = "earth",
+) -> NavigatorOutputs | None:
+    """The offline navigator over whole topics (what ``navigator_node`` publishes for them).
+
+    ``imu``: :class:`~strapdown_ros.messages.ImuFields` of the input (uniformly stamped),
+    ``truth``: :class:`~strapdown_ros.messages.OdometryFields` (the first message whose stamp
+    is one period before the first Imu message starts the run). Used by ``strapdown-sim
+    replay`` to check a live replay. Raises :class:`StreamError` on gaps.
+    """
+    from strapdown_ros.messages import imu_increments, odometry_state
+
+    inc = imu_increments(imu)
+    if truth is None:
+        raise StreamError("the offline navigator needs the truth topic to start")
+    state = odometry_state(truth)
+    start = int(inc.stamps_ns[0]) - inc.period_ns
+    rows = np.flatnonzero(np.asarray(state.stamps_ns) == start)
+    if not rows.size:
+        raise StreamError(f"no truth message at {start} ns (one period before the first Imu)")
+    run = NavigatorRun(
+        settings, start, inc.period_ns, initial_state_from_truth(state, int(rows[0]), settings),
+        bool(settings.truth_topic), state.omega_eb_b[int(rows[0])], earth_frame,
+    )  # fmt: skip
+    run.add_truth(state)
+    run.add_imu(inc.stamps_ns, inc.dalpha, inc.dv)
+    return run.outputs()

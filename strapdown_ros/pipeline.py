@@ -26,9 +26,18 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from strapdown_ros.scenario import Scenario, load_scenario
 
-__all__ = ["PipelineError", "PipelineResult", "expected_counts", "run_pipeline"]
+__all__ = [
+    "PipelineError",
+    "PipelineResult",
+    "ReplayResult",
+    "expected_counts",
+    "replay_into_navigator",
+    "run_pipeline",
+]
 
 #: Seconds a node may take to start and subscribe.
 STARTUP_TIMEOUT_S = 60.0
@@ -361,3 +370,167 @@ def run_pipeline(
         duration_s=data_s,
         domain_id=domain,
     )
+
+
+@dataclass
+class ReplayResult:
+    """What ``replay --into navigator`` recorded and how it compares with the offline run."""
+
+    out: Path
+    counts: dict[str, int] = field(default_factory=dict)
+    mismatches: dict[str, str] = field(default_factory=dict)
+    reference: str = ""
+    elapsed_s: float = 0.0
+
+    def format(self) -> str:
+        lines = [f"bag:       {self.out}", f"compared with: {self.reference}"]
+        for topic, n in self.counts.items():
+            lines.append(f"  {topic}: {n} messages  {self.mismatches.get(topic, 'identical')}")
+        lines.append(
+            "identical to the offline navigator"
+            if not self.mismatches
+            else f"DIFFERENT from the offline navigator: {self.mismatches}"
+        )
+        return "\n".join(lines)
+
+
+def replay_into_navigator(
+    bag: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    scenario_path: str | os.PathLike[str] | None = None,
+    overrides: Sequence[str] = (),
+    rate_factor: float = 1.0,
+    force: bool = False,
+    domain_id: int | None = None,
+    timeout_s: float | None = None,
+    progress: bool = True,
+) -> ReplayResult:
+    """Play a bag's navigator input into a live ``navigator_node`` and record its output.
+
+    ``bag_player`` publishes the navigator's IMU and truth topics of ``bag`` paced at
+    ``rate_factor`` (hardware-in-the-loop style); ``navigator_node`` (settings: the scenario's
+    ``navigator`` section, else the node's defaults) processes them; ``bag_recorder`` writes
+    ``/navigator/*`` to ``out``. The recording is then compared payload for payload with the
+    offline navigator on the same messages (the bag's own ``/navigator/*`` topics when they were
+    written with the same settings, else :func:`strapdown_ros.navigator.navigate_messages`).
+    """
+    from strapdown_ros.bag import cdr
+    from strapdown_ros.bag.reader import read_bag
+    from strapdown_ros.navigator import OUTPUT_TOPICS, navigate_messages, parse_navigator
+    from strapdown_ros.scenario import DEFAULT_TOPICS
+
+    t_start = time.monotonic()
+    out = Path(out)
+    if out.exists() and not force:
+        raise FileExistsError(f"{out} exists already; not overwriting (use --force)")
+    scenario = None
+    if scenario_path is not None:
+        scenario = load_scenario(scenario_path, list(overrides))
+        topics = dict(scenario.recording.topics)
+        settings = parse_navigator(scenario.navigator, topics, scenario.gravity_model)
+    else:
+        topics = dict(DEFAULT_TOPICS)
+        settings = parse_navigator({}, topics, "j2")
+    inputs = [settings.imu_topic] + ([settings.truth_topic] if settings.truth_topic else [])
+    contents = read_bag(bag, inputs, raw=True)
+    imu = contents.topics[settings.imu_topic]
+    truth = contents.topics.get(settings.truth_topic) if settings.truth_topic else None
+    n_imu = len(imu)
+    data_s = (n_imu + 1) * float(np.median(np.diff(imu.log_time_ns))) * 1e-9 if n_imu > 1 else 0
+    if timeout_s is None:
+        timeout_s = data_s / max(rate_factor, 1e-3) + 120.0
+    expected = navigate_messages(settings, imu.fields, truth.fields if truth else None)
+    out_topics = {k: topics[v] for k, v in OUTPUT_TOPICS.items()}
+
+    domain = _private_domain() if domain_id is None else int(domain_id)
+    env = dict(os.environ)
+    env.update(
+        ROS_DOMAIN_ID=str(domain),
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        RMW_IMPLEMENTATION=env.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp",
+        PYTHONUNBUFFERED="1",
+    )
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    log_dir = out.parent / f"{out.name}.logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    children: list[_Child] = []
+
+    def start(name: str, params: list[str]) -> _Child:
+        args = [_executable(name), "--ros-args"]
+        for p in params:
+            args += ["-p", p]
+        child = _Child(name, args, env, log_dir)
+        children.append(child)
+        return child
+
+    def say(text: str) -> None:
+        if progress:
+            print(f"[replay] {text}", file=sys.stderr, flush=True)
+
+    recorded = [t for k, t in out_topics.items() if settings.truth_topic or not k.startswith("e")]
+    node_params = [f"imu_topic:={settings.imu_topic}", "qos_depth:=10000", "idle_timeout_s:=2.0"]
+    node_params.append(f"truth_topic:={settings.truth_topic or '-'}")
+    if scenario_path is not None:
+        node_params.append(f"scenario:={Path(scenario_path).resolve()}")
+        if overrides:
+            node_params.append("overrides:=[" + ",".join(f"'{o}'" for o in overrides) + "]")
+    node_params.append("subscribers_per_topic:=[" + ",".join(f"'{t}=1'" for t in recorded) + "]")
+    try:
+        say(f"ROS_DOMAIN_ID={domain}; logs in {log_dir}")
+        recorder = start(
+            "bag_recorder",
+            [f"output:={out}", "stop_when_done:=true", f"force:={str(force).lower()}",
+             "topics:=[" + ",".join(f"'{t}'" for t in recorded) + "]"],
+        )  # fmt: skip
+        nav = start("navigator_node", node_params)
+        nav.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
+        say(f"navigator_node subscribed; playing {', '.join(inputs)} of {bag}")
+        player = start(
+            "bag_player",
+            [f"bag:={Path(bag).resolve()}", f"rate_factor:={float(rate_factor)}",
+             "topics:=[" + ",".join(f"'{t}'" for t in inputs) + "]", "publish_clock:=false",
+             "wait_for_subscribers:=1", "qos_depth:=10000"],
+        )  # fmt: skip
+        deadline = time.monotonic() + timeout_s
+        done_at: float | None = None
+        while recorder.proc.poll() is None:
+            for c in children:
+                code = c.proc.poll()
+                if code is not None and code != 0:
+                    raise PipelineError(f"{c.name} exited with status {code}", c.log)
+            if player.proc.poll() == 0 and nav.proc.poll() == 0:
+                done_at = done_at or time.monotonic()
+                if time.monotonic() - done_at > RECORDER_GRACE_S:
+                    recorder.stop()
+            if time.monotonic() > deadline:
+                raise PipelineError(f"the replay did not finish within {timeout_s:g} s", nav.log)
+            time.sleep(0.1)
+        if recorder.proc.returncode != 0:
+            raise PipelineError(
+                f"bag_recorder exited with {recorder.proc.returncode}", recorder.log
+            )
+    except BaseException:
+        _stop_all(children)
+        raise
+    finally:
+        for c in children:
+            if c.proc.poll() is None:
+                c.proc.kill()
+                c.proc.wait()
+            c.close()
+    got = read_bag(out, raw=True)
+    result = ReplayResult(out=out, reference="the offline navigator on the bag's messages")
+    want = dict(expected.items()) if expected is not None else {}
+    for key, topic in out_topics.items():
+        if topic not in recorded:
+            continue
+        payloads = [bytes(p) for p in got.topics[topic].payloads] if topic in got.topics else []
+        result.counts[topic] = len(payloads)
+        ref = [bytes(p) for p in cdr.serialize(want[key])] if key in want else []
+        if payloads != ref:
+            result.mismatches[topic] = f"{len(payloads)} recorded vs {len(ref)} expected" + (
+                "" if len(payloads) != len(ref) else ", payloads differ"
+            )
+    result.elapsed_s = time.monotonic() - t_start
+    return result
