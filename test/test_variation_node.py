@@ -459,6 +459,43 @@ def test_solver_equals_generate_and_drops_identical_duplicates(bag, scenario):
     assert len(warn.lines) == 1 and "duplicate stamp" in warn.lines[0], warn.lines
 
 
+@pytest.mark.parametrize("every", [7, 1000])
+def test_solver_catching_up_in_long_windows_equals_generate(bag, scenario, every):
+    """The node buffers messages that arrive back to back and solves them in one window
+    (``solve=False``, then ``advance``): same bytes as one window per pair; a gap in between
+    still ends the first run where the per-pair solver ends it."""
+    _, contents = bag
+    items = _inputs(contents)
+    solver, warn, error = _solver(scenario)
+    got: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
+    windows = []
+    for i, (kind, payload) in enumerate(items):
+        out = solver.on_message(kind, payload, solve=False)
+        if (i + 1) % every == 0 or i + 1 == len(items):
+            out += solver.advance()
+        for topic, _, data in out:
+            got[topic].append(data)
+        windows.append(len(solver.timing.wall))
+    for topic in OUTPUTS:
+        assert got[topic] == [bytes(p) for p in contents.topics[topic].payloads], topic
+    assert solver.finished and solver.runs == 1 and not error.lines and not warn.lines
+    assert windows[-1] < CYCLES // 2  # fewer windows than pairs: the long windows were used
+
+    # With a gap: deferred solving publishes exactly what immediate solving publishes.
+    gap = [it for it in items if not (it[0] == "imu" and _cycle(scenario, _stamp_of(it[1])) == 150)]
+    reference, _, _ = _solver(scenario)
+    want = _feed(reference, gap)
+    deferred, _, _ = _solver(scenario)
+    got = {t: [] for t in OUTPUTS}
+    for i, (kind, payload) in enumerate(gap):
+        out = deferred.on_message(kind, payload, solve=False)
+        if (i + 1) % every == 0 or i + 1 == len(gap):
+            out += deferred.advance()
+        for topic, _, data in out:
+            got[topic].append(data)
+    assert got == want
+
+
 def test_solver_rejects_frame_and_layout_mismatch(bag, scenario):
     _, contents = bag
     items = _inputs(contents)
