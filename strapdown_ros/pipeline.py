@@ -188,6 +188,26 @@ def _executable(name: str) -> str:
     return str(local) if local.exists() else name
 
 
+def _child_env(domain: int) -> dict[str, str]:
+    """The children's environment: a private ROS domain, LOCALHOST discovery, Fast DDS."""
+    env = dict(os.environ)
+    env.update(
+        ROS_DOMAIN_ID=str(domain),
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        RMW_IMPLEMENTATION=env.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp",
+        PYTHONUNBUFFERED="1",
+    )
+    env.pop("ROS_LOCALHOST_ONLY", None)  # superseded; Jazzy warns when both are set
+    return env
+
+
+def _log_dir(out: Path) -> Path:
+    """``<out>.logs/``, created: one log file per child process."""
+    log_dir = out.parent / f"{out.name}.logs"
+    log_dir.mkdir(parents=True, exist_ok=True)
+    return log_dir
+
+
 def _private_domain() -> int:
     """A domain id in 102..232 from the pid (test sessions use 1..101; see test/conftest.py)."""
     return 102 + os.getpid() % 131
@@ -230,16 +250,7 @@ def run_pipeline(
     if timeout_s is None:
         timeout_s = data_s / max(rate_factor, 1e-3) + 120.0
     domain = _private_domain() if domain_id is None else int(domain_id)
-    env = dict(os.environ)
-    env.update(
-        ROS_DOMAIN_ID=str(domain),
-        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-        RMW_IMPLEMENTATION=env.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp",
-        PYTHONUNBUFFERED="1",
-    )
-    env.pop("ROS_LOCALHOST_ONLY", None)
-    log_dir = out.parent / f"{out.name}.logs"
-    log_dir.mkdir(parents=True, exist_ok=True)
+    env, log_dir = _child_env(domain), _log_dir(out)
 
     common = [f"scenario:={Path(scenario_path).resolve()}"]
     if overrides:
@@ -444,16 +455,7 @@ def replay_into_navigator(
     out_topics = {k: topics[v] for k, v in OUTPUT_TOPICS.items()}
 
     domain = _private_domain() if domain_id is None else int(domain_id)
-    env = dict(os.environ)
-    env.update(
-        ROS_DOMAIN_ID=str(domain),
-        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-        RMW_IMPLEMENTATION=env.get("RMW_IMPLEMENTATION") or "rmw_fastrtps_cpp",
-        PYTHONUNBUFFERED="1",
-    )
-    env.pop("ROS_LOCALHOST_ONLY", None)
-    log_dir = out.parent / f"{out.name}.logs"
-    log_dir.mkdir(parents=True, exist_ok=True)
+    env, log_dir = _child_env(domain), _log_dir(out)
     children: list[_Child] = []
 
     def start(name: str, params: list[str]) -> _Child:

@@ -358,21 +358,7 @@ class MultirateNavigator:
         NavSolution
             The K new outputs (at the ends of the completed cycles; may be empty).
         """
-        da, dvv = _check_increments(dalpha, dv, self.n)
-        if self._pending_da.shape[0]:
-            da = np.concatenate([self._pending_da, da])
-            dvv = np.concatenate([self._pending_dv, dvv])
-        cycles = da.shape[0] // self.n
-        used = cycles * self.n
-        self._pending_da, self._pending_dv = da[used:].copy(), dvv[used:].copy()
-        da, dvv = np.ascontiguousarray(da[:used]), np.ascontiguousarray(dvv[:used])
-        haux = np.zeros(cycles)
-        if self.damping is not None:
-            if h_aux is None:
-                raise ValueError("vertical damping needs the auxiliary altitude h_aux")
-            haux = np.asarray(h_aux, dtype=np.float64).reshape(-1)
-            if haux.shape[0] != cycles:
-                raise ValueError(f"h_aux has {haux.shape[0]} values for {cycles} cycles")
+        da, dvv, cycles, haux = _take_cycles(self, dalpha, dv, h_aux)
         if self.mode == "exact":
             out = self._run_exact(da, dvv, cycles)
         elif self.engine == "numba":
@@ -570,20 +556,8 @@ class SimultaneousNavigator:
 
         Same contract as :meth:`MultirateNavigator.run`.
         """
-        da, dvv = _check_increments(dalpha, dv, self.n)
-        if self._pending_da.shape[0]:
-            da = np.concatenate([self._pending_da, da])
-            dvv = np.concatenate([self._pending_dv, dvv])
+        da, dvv, cycles, haux = _take_cycles(self, dalpha, dv, h_aux)
         n, t_nav = self.n, self.t_nav
-        cycles = da.shape[0] // n
-        self._pending_da, self._pending_dv = da[cycles * n :].copy(), dvv[cycles * n :].copy()
-        haux = None
-        if self.damping is not None:
-            if h_aux is None:
-                raise ValueError("vertical damping needs the auxiliary altitude h_aux")
-            haux = np.asarray(h_aux, dtype=np.float64).reshape(-1)
-            if haux.shape[0] != cycles:
-                raise ValueError(f"h_aux has {haux.shape[0]} values for {cycles} cycles")
         c1, c2 = self.damping.coefficients if self.damping is not None else (0.0, 0.0)
         st = self._state
         lat, lon, alt = float(st.lat), float(st.lon), float(st.alt)
@@ -595,7 +569,7 @@ class SimultaneousNavigator:
         for j in range(cycles):
             lat_dot, lon_dot, w_il, w_cor = _rates(lat, alt, u, self.table1_radii)
             g_l = gravity_ned(lat, alt, self.gravity_model)
-            sv = alt - haux[j] if haux is not None else 0.0
+            sv = alt - haux[j] if self.damping is not None else 0.0
             f_l = dcm_from_quat(q) @ (dvv[j * n] / self.t_gyr)  # (15) with the sampled f_b(k)
             sl_ = slice(j * n, (j + 1) * n)
             q, _ = fast_cycle(q, da[sl_], dvv[sl_], self.t_gyr * w_il, self.normalize)  # (33)
@@ -611,6 +585,34 @@ class SimultaneousNavigator:
                 float(t[-1]), float(lat), float(lon), float(alt), u.copy(), q.copy()
             )
         return out
+
+
+def _take_cycles(
+    nav: MultirateNavigator | SimultaneousNavigator,
+    dalpha: ArrayLike,
+    dv: ArrayLike,
+    h_aux: ArrayLike | None,
+) -> tuple[Array, Array, int, Array]:
+    """The whole ``T_nav`` cycles of pending + new increments (the rest stays pending).
+
+    Returns the increments of those cycles (contiguous), their number K and the auxiliary
+    altitudes (K,) (zeros without damping; checked present and of length K with it).
+    """
+    da, dvv = _check_increments(dalpha, dv, nav.n)
+    if nav._pending_da.shape[0]:
+        da = np.concatenate([nav._pending_da, da])
+        dvv = np.concatenate([nav._pending_dv, dvv])
+    cycles = da.shape[0] // nav.n
+    used = cycles * nav.n
+    nav._pending_da, nav._pending_dv = da[used:].copy(), dvv[used:].copy()
+    haux = np.zeros(cycles)
+    if nav.damping is not None:
+        if h_aux is None:
+            raise ValueError("vertical damping needs the auxiliary altitude h_aux")
+        haux = np.asarray(h_aux, dtype=np.float64).reshape(-1)
+        if haux.shape[0] != cycles:
+            raise ValueError(f"h_aux has {haux.shape[0]} values for {cycles} cycles")
+    return np.ascontiguousarray(da[:used]), np.ascontiguousarray(dvv[:used]), cycles, haux
 
 
 def _with_initial(first: NavState, out: NavSolution) -> NavSolution:
