@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pickle
 import sys
+import threading
 import time
 
 
@@ -93,9 +95,19 @@ def main() -> int:
         print("OK", flush=True)
         return 0
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+        # The result is written and printed; a DDS teardown that hangs (seen once in CI on a
+        # loaded machine, with the publisher still draining) must not fail the test: give it
+        # a few seconds in a daemon thread, then exit anyway.
+        def teardown() -> None:
+            node.destroy_node()
+            rclpy.try_shutdown()
+
+        done = threading.Thread(target=teardown, daemon=True)
+        done.start()
+        done.join(timeout=5.0)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    sys.stdout.flush()
+    os._exit(code)
