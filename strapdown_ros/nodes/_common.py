@@ -11,10 +11,12 @@ import re
 import time
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -25,12 +27,15 @@ __all__ = [
     "EXIT_OK",
     "Pacer",
     "ParameterError",
+    "RunControl",
     "declare_bool",
     "declare_int",
     "declare_number",
+    "declare_run_control",
     "declare_string",
     "declare_string_array",
     "declare_subscriber_counts",
+    "drain_publishers",
     "message_class",
     "qos_from_parameters",
 ]
@@ -218,6 +223,64 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+@dataclass(frozen=True)
+class RunControl:
+    """When a downstream node starts (subscriptions to wait for) and when it stops."""
+
+    exit_when_done: bool
+    idle_timeout_s: float
+    wait_for_subscribers: int
+    wait_timeout_s: float
+    subscribers_per_topic: dict[str, int]
+
+
+def declare_run_control(node: Node, done: str) -> RunControl:
+    """Declare ``exit_when_done``, ``idle_timeout_s``, ``wait_for_subscribers``,
+    ``wait_timeout_s`` and ``subscribers_per_topic`` (the nodes that process an input stream).
+
+    ``done`` says what "done" is for the node (e.g. "the last output"), for the description.
+    """
+    exit_when_done = declare_bool(
+        node, "exit_when_done", True, f"exit after {done} or idle_timeout_s"
+    )
+    idle_timeout_s = declare_number(
+        node, "idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"
+    )
+    if idle_timeout_s <= 0:
+        raise ParameterError("idle_timeout_s", f"must be > 0, got {idle_timeout_s}")
+    wait_for_subscribers = declare_int(
+        node, "wait_for_subscribers", 0, "output subscriptions to wait for before subscribing", 0
+    )
+    wait_timeout_s = declare_number(node, "wait_timeout_s", 10.0, "seconds to wait")
+    return RunControl(
+        exit_when_done,
+        idle_timeout_s,
+        wait_for_subscribers,
+        wait_timeout_s,
+        declare_subscriber_counts(node),
+    )
+
+
+def drain_publishers(
+    node: Node, pubs: list[Any], spin: Callable[[float], None], timeout_s: float, grace_s: float
+) -> None:
+    """Let RELIABLE subscribers acknowledge everything (at most ``timeout_s``, a warning names
+    the topics that did not), then spin ``grace_s`` more."""
+    deadline = time.monotonic() + timeout_s
+    for pub in pubs:
+        while rclpy.ok(context=node.context):
+            if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
+                break
+            if time.monotonic() > deadline:
+                node.get_logger().warning(
+                    f"{pub.topic_name}: messages not acknowledged within {timeout_s:g} s"
+                )
+                break
+    end = time.monotonic() + grace_s
+    while time.monotonic() < end and rclpy.ok(context=node.context):
+        spin(max(end - time.monotonic(), 0.0))
 
 
 def declare_subscriber_counts(node: Node) -> dict[str, int]:

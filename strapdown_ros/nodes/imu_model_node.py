@@ -31,7 +31,6 @@ import time
 from collections.abc import Callable
 
 import rclpy
-from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -41,12 +40,11 @@ from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
     ParameterError,
-    declare_bool,
-    declare_int,
     declare_number,
+    declare_run_control,
     declare_string,
     declare_string_array,
-    declare_subscriber_counts,
+    drain_publishers,
     message_class,
     qos_from_parameters,
     run_node,
@@ -100,23 +98,12 @@ class ImuModelNode(Node):
         if self.input_topic == self.output_topic:
             raise ParameterError("output_topic", f"equals the input topic {self.input_topic}")
         self.qos = qos_from_parameters(self)
-        self.exit_when_done = declare_bool(
-            self, "exit_when_done", True, "exit after the last cycle or idle_timeout_s"
-        )
-        self.idle_timeout_s = declare_number(
-            self, "idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"
-        )
-        if self.idle_timeout_s <= 0:
-            raise ParameterError("idle_timeout_s", f"must be > 0, got {self.idle_timeout_s}")
-        self.wait_for_subscribers = declare_int(
-            self,
-            "wait_for_subscribers",
-            0,
-            "output subscriptions to wait for before subscribing",
-            0,
-        )
-        self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
-        self.subscribers_per_topic = declare_subscriber_counts(self)
+        run_control = declare_run_control(self, "the last cycle")
+        self.exit_when_done = run_control.exit_when_done
+        self.idle_timeout_s = run_control.idle_timeout_s
+        self.wait_for_subscribers = run_control.wait_for_subscribers
+        self.wait_timeout_s = run_control.wait_timeout_s
+        self.subscribers_per_topic = run_control.subscribers_per_topic
 
         log = self.get_logger()
         self.stream = MeasuredImuStream(
@@ -218,18 +205,7 @@ class ImuModelNode(Node):
 
     def _drain(self, spin: Callable[[float], None]) -> None:
         """Let the subscribers receive everything: acknowledgements, then a grace period."""
-        deadline = time.monotonic() + DRAIN_TIMEOUT_S
-        while rclpy.ok(context=self.context):
-            if self.publisher.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
-                break
-            if time.monotonic() > deadline:
-                self.get_logger().warning(
-                    f"{self.output_topic}: messages not acknowledged within {DRAIN_TIMEOUT_S:g} s"
-                )
-                break
-        end = time.monotonic() + GRACE_S
-        while time.monotonic() < end and rclpy.ok(context=self.context):
-            spin(max(end - time.monotonic(), 0.0))
+        drain_publishers(self, [self.publisher], spin, DRAIN_TIMEOUT_S, GRACE_S)
 
 
 def main(args: list[str] | None = None) -> int:

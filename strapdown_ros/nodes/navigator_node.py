@@ -28,7 +28,6 @@ from typing import Any
 
 import numpy as np
 import rclpy
-from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -49,12 +48,12 @@ from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
     ParameterError,
-    declare_bool,
     declare_int,
     declare_number,
+    declare_run_control,
     declare_string,
     declare_string_array,
-    declare_subscriber_counts,
+    drain_publishers,
     message_class,
     qos_from_parameters,
     run_node,
@@ -367,19 +366,12 @@ class NavigatorNode(Node):
                 self, f"{key}_topic", topics[rec_key], f"output topic (recording.topics.{rec_key})"
             )
         self.qos = qos_from_parameters(self)
-        self.exit_when_done = declare_bool(
-            self, "exit_when_done", True, "exit after the last output or idle_timeout_s"
-        )
-        self.idle_timeout_s = declare_number(
-            self, "idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"
-        )
-        if self.idle_timeout_s <= 0:
-            raise ParameterError("idle_timeout_s", f"must be > 0, got {self.idle_timeout_s}")
-        self.wait_for_subscribers = declare_int(
-            self, "wait_for_subscribers", 0, "output subscriptions to wait for", 0
-        )
-        self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
-        self.subscribers_per_topic = declare_subscriber_counts(self)
+        run_control = declare_run_control(self, "the last output")
+        self.exit_when_done = run_control.exit_when_done
+        self.idle_timeout_s = run_control.idle_timeout_s
+        self.wait_for_subscribers = run_control.wait_for_subscribers
+        self.wait_timeout_s = run_control.wait_timeout_s
+        self.subscribers_per_topic = run_control.subscribers_per_topic
 
         end_ns = None
         if scenario is not None:
@@ -483,16 +475,8 @@ class NavigatorNode(Node):
         return EXIT_OK
 
     def _drain(self, spin: Callable[[float], None]) -> None:
-        deadline = time.monotonic() + DRAIN_TIMEOUT_S
-        for pub in self._pubs.values():
-            while rclpy.ok(context=self.context):
-                if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
-                    break
-                if time.monotonic() > deadline:
-                    break
-        end = time.monotonic() + GRACE_S
-        while time.monotonic() < end and rclpy.ok(context=self.context):
-            spin(max(end - time.monotonic(), 0.0))
+        """Let the subscribers receive everything: acknowledgements, then a grace period."""
+        drain_publishers(self, list(self._pubs.values()), spin, DRAIN_TIMEOUT_S, GRACE_S)
 
 
 def _input_end_ns(scenario: Scenario, imu_topic: str) -> int | None:
