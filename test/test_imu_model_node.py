@@ -356,8 +356,12 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
             [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", "qos_depth:=0"],
             r"parameter 'qos_depth'",
         ),
+        (
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", "executor:=multi"],
+            r"parameter 'executor': must be one of: events, single_threaded",
+        ),
     ],
-    ids=["missing", "no-imu-errors", "seed", "shape", "same-topic", "qos"],
+    ids=["missing", "no-imu-errors", "seed", "shape", "same-topic", "qos", "executor"],
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")

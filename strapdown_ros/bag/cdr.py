@@ -18,6 +18,7 @@ Supported types: ``sensor_msgs/msg/Imu``, ``nav_msgs/msg/Odometry``,
 
 from __future__ import annotations
 
+import functools
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -91,7 +92,16 @@ def _align(pos: int, n: int) -> int:
 
 
 def build_layout(items: Sequence[Item], strings: Sequence[str]) -> Layout:
-    """Layout of ``items`` with string values ``strings`` (positions relative to the CDR origin)."""
+    """Layout of ``items`` with string values ``strings`` (positions relative to the CDR origin).
+
+    Layouts are cached (a live node decodes thousands of one-message batches per second with
+    the same frame ids); the returned arrays are read-only.
+    """
+    return _cached_layout(tuple(items), tuple(strings))
+
+
+@functools.lru_cache(maxsize=256)
+def _cached_layout(items: tuple[Item, ...], strings: tuple[str, ...]) -> Layout:
     names: list[str] = []
     formats: list[object] = []
     offsets: list[int] = []
@@ -123,11 +133,13 @@ def build_layout(items: Sequence[Item], strings: Sequence[str]) -> Layout:
             pos = new + dt.itemsize * count
     size = _HEADER + pos
     dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": size})
+    const_mask = np.frombuffer(bytes(mask), dtype=np.uint8).astype(bool)
+    const_mask.flags.writeable = False  # shared through the cache
     return Layout(
         size=size,
         dtype=dtype,
         template=np.frombuffer(bytes(template), dtype=np.uint8),
-        const_mask=np.frombuffer(bytes(mask), dtype=np.uint8).astype(bool),
+        const_mask=const_mask,
         strings=tuple(strings),
     )
 

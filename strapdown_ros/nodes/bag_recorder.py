@@ -287,8 +287,6 @@ class BagRecorder(Node):
 
     def run(self, executor) -> int:
         """Record until a signal, ``max_duration_s`` or ``stop_when_done``; return the status."""
-        events = _events_executor(self, executor)
-        executor = events or executor
         # Our own handlers: a signal only sets a flag, so that the queued messages are still
         # taken and the bag is closed properly (rclpy's would shut the context down first).
         from rclpy.signals import uninstall_signal_handlers
@@ -322,9 +320,6 @@ class BagRecorder(Node):
             status = EXIT_FAILURE
         finally:
             self._close(time.monotonic() - start)
-            if events is not None:
-                events.remove_node(self)
-                events.shutdown()
         return status
 
     def _record(self, executor, start: float) -> int:
@@ -445,18 +440,6 @@ def _distinct(profiles: list[Qos]) -> list[Qos]:
 def _describe_qos(q: QoSProfile) -> str:
     history = "KEEP_ALL" if q.history == HistoryPolicy.KEEP_ALL else f"KEEP_LAST({q.depth})"
     return f"{q.reliability.name}, {q.durability.name}, {history}"
-
-
-def _events_executor(node: Node, default):
-    """Move ``node`` to a new rclpy EventsExecutor (None when rclpy has none)."""
-    try:
-        from rclpy.experimental import EventsExecutor
-    except ImportError:  # pragma: no cover - older rclpy
-        return None
-    default.remove_node(node)
-    executor = EventsExecutor(context=node.context)
-    executor.add_node(node)
-    return executor
 
 
 def main(args: list[str] | None = None) -> int:

@@ -31,7 +31,7 @@ import time
 from collections.abc import Callable
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
 from strapdown_ros.bag import cdr
@@ -153,7 +153,7 @@ class ImuModelNode(Node):
         """The last cycle of the scenario's input stream has been processed."""
         return self.last_cycle is not None and self.stream.last_cycle >= self.last_cycle
 
-    def run(self, executor: SingleThreadedExecutor) -> int:
+    def run(self, executor: Executor) -> int:
         """Process the input until done (or a signal); return the exit status."""
 
         def spin(timeout_s: float) -> None:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
 from strapdown_ros.bag import cdr
@@ -433,7 +433,7 @@ class NavigatorNode(Node):
 
         return on_message
 
-    def run(self, executor: SingleThreadedExecutor) -> int:
+    def run(self, executor: Executor) -> int:
         """Process the input until done (or a signal); return the exit status."""
 
         def spin(timeout_s: float) -> None:

@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterator
 
 import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
 from strapdown_ros.bag.batches import Batch, merge_order
@@ -203,7 +203,7 @@ class TrajectoryNode(Node):
 
     # -----------------------------------------------------------------------------------------
 
-    def run(self, executor: SingleThreadedExecutor) -> int:
+    def run(self, executor: Executor) -> int:
         """Publish the whole stream; return the exit status."""
         last_spin = [time.monotonic()]
 
