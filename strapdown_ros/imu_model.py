@@ -296,6 +296,25 @@ class MeasuredImuStream:
             return None
         return bytes(cdr.serialize(out)[0])
 
+    def on_payloads(self, payloads: list[bytes | memoryview]) -> list[bytes]:
+        """Several serialized ideal Imu messages in, the serialized measured messages out.
+
+        The same bytes as :meth:`on_payload` one by one (the model applied in chunks is the
+        model applied to the whole stream), decoded and serialized with one CDR call each. A
+        batch that does not decode as a whole (a malformed message, mixed frame ids) is taken
+        one by one, so each bad message is reported and only it is dropped.
+        """
+        if not payloads:
+            return []
+        try:
+            ideal = cdr.deserialize(cdr.IMU, payloads)
+        except Exception:  # one by one: on_payload names what is wrong with which message
+            return [d for d in map(self.on_payload, payloads) if d is not None]
+        out = self.feed(ideal)  # type: ignore[arg-type]
+        if out is None:
+            return []
+        return [bytes(d) for d in cdr.serialize(out)]
+
     def feed_batches(self, batches: list[Batch]) -> list[Batch]:
         """``generate``'s path: the output batch of the input topic's batch among ``batches``."""
         out = []

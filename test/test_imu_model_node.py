@@ -161,6 +161,22 @@ def test_stream_message_by_message_equals_offline(bag, scenario, offline):
         assert [bytes(p) for p in contents.topics[OUT].payloads] == offline
 
 
+def test_stream_payload_batches_equal_offline(bag, scenario, offline):
+    """``on_payloads`` (what the node calls) equals ``on_payload`` one by one; a batch with a
+    malformed payload falls back to one by one: only that message is dropped and reported."""
+    _, contents = bag
+    payloads = [bytes(p) for p in contents.topics[IN].payloads]
+    stream = MeasuredImuStream(scenario)
+    got = []
+    for a in range(0, len(payloads), 9):
+        got += stream.on_payloads(payloads[a : a + 9])
+    assert got == offline and stream.runs == 1
+    errors: list[str] = []
+    stream = MeasuredImuStream(scenario, error=errors.append)
+    got = stream.on_payloads(payloads[:5] + [b"\x00\x01\x00\x00garbage"] + payloads[5:12])
+    assert got == offline[:12] and len(errors) == 1 and "decode" in errors[0]
+
+
 def test_stream_restart_offgrid_and_late_start(bag, scenario, offline):
     _, contents = bag
     payloads = contents.topics[IN].payloads

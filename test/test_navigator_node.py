@@ -192,6 +192,34 @@ def test_solver_gap_and_out_of_order(bag, scenario) -> None:
     assert solver.runs == 2
 
 
+@pytest.mark.parametrize("size", [1, 7, 40])
+def test_solver_batches_equal_one_by_one(bag, scenario, size) -> None:
+    """``on_batch`` (what the node calls) publishes what ``on_imu``/``on_truth`` one by one
+    publish, in the same order, also across a gap, a repeat, a malformed payload and a truth
+    message in the wrong frame (each reported as one by one)."""
+    _, contents = bag
+    items = [("truth" if k == "odom" else k, p) for k, p in _live_order(contents, drop=123)]
+    items.insert(500, items[497])  # a repeated IMU message
+    items.insert(700, ("imu", bytes(items[699][1])[:-8]))  # a malformed one
+    k = next(i for i in range(900, len(items)) if items[i][0] == "truth")
+    odom = cdr.deserialize(cdr.ODOMETRY, [items[k][1]])
+    wrong = type(odom)(**{**odom.__dict__, "frame_id": "map"})
+    items[k] = ("truth", bytes(cdr.serialize(wrong)[0]))
+    want_log: list[str] = []
+    one = _solver(scenario, want_log)
+    want = []
+    for kind, payload in items:
+        want += (one.on_imu if kind == "imu" else one.on_truth)(payload)
+    got_log: list[str] = []
+    batched = _solver(scenario, got_log)
+    got = []
+    for i in range(0, len(items), size):
+        got += batched.on_batch(items[i : i + size])
+    assert [(t, s, bytes(d)) for t, s, d in got] == [(t, s, bytes(d)) for t, s, d in want]
+    assert got_log == want_log and any("'map'" in w for w in got_log)
+    assert batched.runs == one.runs >= 2 and batched.finished
+
+
 def test_scenario_rejects_bad_navigator_sections() -> None:
     from strapdown_ros.scenario import ScenarioError
 

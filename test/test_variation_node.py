@@ -496,6 +496,29 @@ def test_solver_catching_up_in_long_windows_equals_generate(bag, scenario, every
     assert got == want
 
 
+@pytest.mark.parametrize("size", [1, 6, 50])
+def test_solver_batches_equal_one_by_one(bag, scenario, size):
+    """``on_batch`` (what the node calls: payloads decoded per topic in one call) publishes
+    what ``on_message`` one by one publishes, across a gap, a duplicate and a malformed
+    payload (which makes its batch fall back to one-by-one decoding and is reported)."""
+    _, contents = bag
+    items = _inputs(contents)
+    items = [i for i in items if not (i[0] == "imu" and _cycle(scenario, _stamp_of(i[1])) == 150)]
+    items.insert(401, items[399])
+    items.insert(600, ("odom", items[600][1][:-8]))
+    reference, want_warn, want_error = _solver(scenario)
+    want = _feed(reference, items)
+    solver, warn, error = _solver(scenario)
+    got: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
+    for i in range(0, len(items), size):
+        for topic, _, data in solver.on_batch(items[i : i + size]):
+            got[topic].append(data)
+    assert got == want
+    assert warn.lines == want_warn.lines and error.lines == want_error.lines
+    assert any("rejected a message" in e for e in error.lines)
+    assert solver.runs == reference.runs >= 2 and solver.finished
+
+
 def test_solver_rejects_frame_and_layout_mismatch(bag, scenario):
     _, contents = bag
     items = _inputs(contents)

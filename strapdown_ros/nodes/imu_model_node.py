@@ -39,7 +39,9 @@ from strapdown_ros.imu_model import MeasuredImuStream, format_stamp, imu_model_t
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
+    InputBatch,
     ParameterError,
+    declare_batch_period,
     declare_number,
     declare_run_control,
     declare_string,
@@ -98,6 +100,7 @@ class ImuModelNode(Node):
         if self.input_topic == self.output_topic:
             raise ParameterError("output_topic", f"equals the input topic {self.input_topic}")
         self.qos = qos_from_parameters(self)
+        self.batch = InputBatch(declare_batch_period(self))
         run_control = declare_run_control(self, "the last cycle")
         self.exit_when_done = run_control.exit_when_done
         self.idle_timeout_s = run_control.idle_timeout_s
@@ -122,7 +125,6 @@ class ImuModelNode(Node):
         except Exception as exc:  # invalid topic name
             raise ParameterError("output_topic", str(exc)) from exc
         self._subscription = None
-        self.last_input = time.monotonic()
         self.started = False
         params = self.stream.params
         end = "" if self.last_cycle is None else f" up to cycle {self.last_cycle}"
@@ -142,10 +144,11 @@ class ImuModelNode(Node):
             raise ParameterError("input_topic", str(exc)) from exc
 
     def _on_message(self, payload: bytes) -> None:
-        self.last_input = time.monotonic()
         self.started = True
-        data = self.stream.on_payload(payload)
-        if data is not None:
+        self.batch.add(payload)  # processed in run(), batch by batch
+
+    def _process(self) -> None:
+        for data in self.stream.on_payloads(self.batch.take()):
             self.publisher.publish(data)
 
     @property
@@ -175,15 +178,19 @@ class ImuModelNode(Node):
         self._subscribe()
         self.get_logger().info(f"subscribed to {self.input_topic}")
         wall_start: float | None = None
+        batch = self.batch
+        batch.last_input = time.monotonic()
         while rclpy.ok(context=self.context):
-            spin(0.1)
+            batch.spin(spin)
+            if batch.due():
+                self._process()
             if wall_start is None and self.started:
                 wall_start = time.monotonic()
             if not self.exit_when_done or not self.started:
                 continue
             if self.finished:
                 break
-            if time.monotonic() - self.last_input > self.idle_timeout_s:
+            if time.monotonic() - batch.last_input > self.idle_timeout_s:
                 self.get_logger().warning(
                     f"no input for {self.idle_timeout_s:g} s; stopping (last cycle "
                     f"{self.stream.describe(self.stream.last_cycle)})"

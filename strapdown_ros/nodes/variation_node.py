@@ -43,7 +43,9 @@ from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messag
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
+    InputBatch,
     ParameterError,
+    declare_batch_period,
     declare_number,
     declare_run_control,
     declare_string,
@@ -80,10 +82,6 @@ Log = Callable[[str], None]
 #: An older stamp at most this many cycles behind the last one is a late message (dropped);
 #: a larger backward jump means the input stream restarted (the solver starts afresh).
 MAX_LATE_CYCLES = 10
-#: Default of ``solve_period_s``: longest time (s) messages wait in the buffer while input
-#: keeps arriving. A window costs ~2.3 ms of CPU plus ~0.1 ms per cycle (numpy call overhead
-#: on small arrays dominates), so solving every 10 ms keeps 1 kHz at ~0.35 of a core.
-SOLVE_PERIOD_S = 0.01
 #: Longest window (cycles) solved at once when the node catches up on a backlog.
 MAX_WINDOW = 401
 
@@ -261,8 +259,37 @@ class VariationSolver:
 
     # ------------------------------------------------------------------------------------------
 
+    def on_batch(self, items: list[tuple[str, bytes]]) -> list[tuple[str, int, bytes]]:
+        """Raw payloads ``(kind, payload)`` in arrival order, then :meth:`advance`.
+
+        The same as :meth:`on_message` with ``solve=False`` one by one followed by
+        :meth:`advance`, but each topic's payloads are decoded with one CDR call (a batch that
+        does not decode as a whole is decoded one by one, so each bad message is reported).
+        """
+        decoded: dict[str, list[object] | None] = {}
+        for kind, msgtype in ((IMU, cdr.IMU), (ODOM, cdr.ODOMETRY)):
+            payloads = [p for k, p in items if k == kind]
+            decoded[kind] = None
+            if payloads:
+                t = time.perf_counter()
+                try:
+                    fields = cdr.deserialize(msgtype, payloads)
+                except cdr.CdrError:
+                    continue
+                decoded[kind] = [fields.rows(i, i + 1) for i in range(len(payloads))]  # type: ignore[attr-defined]
+                self.timing.decode_wall += time.perf_counter() - t
+                self.timing.decoded += len(payloads)
+        out: list[tuple[str, int, bytes]] = []
+        index = {IMU: 0, ODOM: 0}
+        for kind, payload in items:
+            rows = decoded[kind]
+            msg = None if rows is None else rows[index[kind]]
+            index[kind] += 1
+            out += self.on_message(kind, payload, solve=False, decoded=msg)
+        return out + self.advance()
+
     def on_message(
-        self, kind: str, payload: bytes, solve: bool = True
+        self, kind: str, payload: bytes, solve: bool = True, decoded: object | None = None
     ) -> list[tuple[str, int, bytes]]:
         """Take one raw payload of ``kind`` ('imu' | 'odom'); return what to publish.
 
@@ -277,21 +304,25 @@ class VariationSolver:
             sec, nanosec = struct.unpack_from("<iI" if little else ">iI", payload, 4)
             stamp = sec * 1_000_000_000 + nanosec
             if stamp != self.t0_ns + (last + 1) * self.period_ns:
-                return self.advance() + self._on_message(kind, payload, solve)
-        return self._on_message(kind, payload, solve)
+                return self.advance() + self._on_message(kind, payload, solve, decoded)
+        return self._on_message(kind, payload, solve, decoded)
 
-    def _on_message(self, kind: str, payload: bytes, solve: bool) -> list[tuple[str, int, bytes]]:
+    def _on_message(
+        self, kind: str, payload: bytes, solve: bool, decoded: object | None = None
+    ) -> list[tuple[str, int, bytes]]:
         topic = self.topics[kind]
         msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
-        t = time.perf_counter()
-        try:
-            msg = cdr.deserialize(msgtype, [payload])
-        except cdr.CdrError as exc:
-            self.error(f"{topic}: rejected a message that is not a {msgtype} of the expected "
-                       f"layout: {exc}")  # fmt: skip
-            return []
-        self.timing.decode_wall += time.perf_counter() - t
-        self.timing.decoded += 1
+        msg = decoded
+        if msg is None:
+            t = time.perf_counter()
+            try:
+                msg = cdr.deserialize(msgtype, [payload])
+            except cdr.CdrError as exc:
+                self.error(f"{topic}: rejected a message that is not a {msgtype} of the "
+                           f"expected layout: {exc}")  # fmt: skip
+                return []
+            self.timing.decode_wall += time.perf_counter() - t
+            self.timing.decoded += 1
         stamp = int(msg.stamps_ns[0])  # type: ignore[attr-defined]
         offset = stamp - self.t0_ns
         if offset < 0 or offset % self.period_ns:
@@ -521,17 +552,9 @@ class VariationNode(Node):
             if used.count(topic) > 1:
                 raise ParameterError(names[topic], f"topic {topic} is used twice: {used}")
         self.qos = qos_from_parameters(self)
-        self.solve_period_s = declare_number(
-            self,
-            "solve_period_s",
-            SOLVE_PERIOD_S,
-            "longest wait (s) of a complete cycle before it is solved while input keeps coming "
-            "(latency against CPU: one window per period)",
-        )
-        if not 0 < self.solve_period_s <= 1:
-            raise ParameterError(
-                "solve_period_s", f"must be > 0 and <= 1, got {self.solve_period_s}"
-            )
+        # A window costs ~2.3 ms of CPU plus ~0.1 ms per cycle (numpy call overhead on small
+        # arrays dominates): batches of batch_period_s (default 10 ms) keep 1 kHz affordable.
+        self.batch = InputBatch(declare_batch_period(self))
         run_control = declare_run_control(self, "the last cycle")
         self.exit_when_done = run_control.exit_when_done
         self.idle_timeout_s = run_control.idle_timeout_s
@@ -565,8 +588,6 @@ class VariationNode(Node):
                 raise ParameterError(names[topic], str(exc)) from exc
             self.counts[topic] = 0
         self._input_subscriptions: list = []
-        self._last_solve = 0.0
-        self.last_input = 0.0
         self.failure: BaseException | None = None
         m_var = cycles - 1 - (cycles - 1) % 2
         log.info(
@@ -588,11 +609,9 @@ class VariationNode(Node):
                 raise ParameterError(param, str(exc)) from exc
             self._input_subscriptions.append(sub)
 
-    def _callback(self, kind: str):
+    def _callback(self, kind: str) -> Callable[[bytes], None]:
         def on_message(payload: bytes) -> None:
-            self.last_input = time.monotonic()
-            # Only buffered here; run() solves when the input pauses or every solve_period_s.
-            self._publish(self.solver.on_message(kind, payload, solve=False))
+            self.batch.add((kind, payload))  # processed in run(), batch by batch
 
         return on_message
 
@@ -615,16 +634,14 @@ class VariationNode(Node):
         self.get_logger().info(f"subscribed to {self.inputs[IMU]} and {self.inputs[ODOM]}")
         wall_start: float | None = None
         cpu_start = 0.0
+        batch = self.batch
+        batch.last_input = time.monotonic()
         while rclpy.ok(context=self.context):
-            before = self.last_input
-            spin(self.solve_period_s)
-            now = time.monotonic()
-            # Solve when no message came in during the spin (input is idle: real time, every
-            # message solved within ~solve_period_s) or at least every solve_period_s; when
-            # messages arrive back to back (a backlog) they are solved together in one window.
-            if self.last_input == before or now - self._last_solve >= self.solve_period_s:
-                self._publish(self.solver.advance())
-                self._last_solve = now
+            # Messages wait at most batch_period_s (or until the input pauses); a backlog is
+            # solved in longer windows (same bytes), so the node catches up by itself.
+            batch.spin(spin)
+            if batch.due():
+                self._publish(self.solver.on_batch(batch.take()))
             solver = self.solver
             if wall_start is None and solver.started:
                 wall_start, cpu_start = time.monotonic(), time.process_time()
@@ -632,7 +649,7 @@ class VariationNode(Node):
                 continue
             if solver.finished:
                 break
-            if time.monotonic() - self.last_input > self.idle_timeout_s:
+            if time.monotonic() - batch.last_input > self.idle_timeout_s:
                 self.get_logger().warning(
                     f"no input for {self.idle_timeout_s:g} s; stopping before the end of the "
                     f"scenario (last published: cycle {solver.published})"
