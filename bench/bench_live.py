@@ -7,7 +7,7 @@ against the message counts the scenario produces and, payload for payload, again
 ``strapdown-sim generate``'s bag of the same scenario. The ratio printed is the highest
 zero-loss rate over the 1 kHz target.
 
-Usage: python bench/bench_live.py [--rates 200 500 1000 2000] [--duration 20]
+Usage: python bench/bench_live.py [--rates 200 500 1000 2000 2500 4000] [--duration 20]
 Last line: ``live_zero_loss_max_rate_hz: X Hz``.
 """
 
@@ -29,7 +29,8 @@ TARGET_HZ = 1000.0
 
 def main(argv: list[str] | None = None) -> float:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rates", type=float, nargs="+", default=[200, 500, 1000, 2000])
+    rates = [200, 500, 1000, 2000, 2500, 4000]
+    parser.add_argument("--rates", type=float, nargs="+", default=rates)
     parser.add_argument("--duration", type=float, default=20.0)
     args = parser.parse_args(argv)
     best = 0.0

@@ -15,6 +15,8 @@ the same run:
   t the log time, the anchor a chosen so that the earliest message has error 0 (lateness beyond
   the fastest delivery; DDS and the subscriber's own scheduling included).
   ``p99_vs_floor`` = player p99 / floor p99 puts the figure in context on a loaded machine.
+* ``player, SingleThreadedExecutor``: the same with ``executor:=single_threaded`` (the
+  baseline: what the player did before it ran on the EventsExecutor).
 * ``player, SCHED_FIFO 10``: the same with ``realtime_priority:=10`` for the player (and the
   subscriber's thread on SCHED_FIFO too), if the process may; otherwise the line says so.
 
@@ -120,7 +122,10 @@ def stats(errors_s: np.ndarray) -> str:
     return f"p50 {p50:.3f} ms, p99 {p99:.3f} ms, max {e.max():.3f} ms"
 
 
-def play(bag: Path, counts: dict[str, int], duration_s: float, tmp: Path, env, rt: int):
+def play(
+    bag: Path, counts: dict[str, int], duration_s: float, tmp: Path, env, rt: int,
+    executor: str = "events",
+):  # fmt: skip
     """Play ``bag`` to a subscriber process; returns (subscriber errors (s), player's p99 (ms),
     player's report)."""
     out = tmp / "sub.pkl"
@@ -133,7 +138,7 @@ def play(bag: Path, counts: dict[str, int], duration_s: float, tmp: Path, env, r
     assert sub.stdout is not None and sub.stdout.readline().strip() == "READY"
     args = [_bin("bag_player"), "--ros-args"]
     params = [f"bag:={bag}", "wait_for_subscribers:=1", "qos_depth:=100000"]
-    for p in (*params, f"realtime_priority:={rt}"):
+    for p in (*params, f"realtime_priority:={rt}", f"executor:={executor}"):
         args += ["-p", p]
     player = subprocess.run(
         args, env=env, capture_output=True, text=True, timeout=duration_s + 120, cwd=REPO
@@ -178,15 +183,22 @@ def run_rate(rate_hz: int, duration_s: float, tmp: Path, env: dict[str, str]) ->
           f"{total / duration_s:.0f} msgs/s incl. /clock")  # fmt: skip
     floor_err = floor(all_t)
     p99_floor = float(np.percentile(floor_err, 99) * 1e3)
-    print(f"  {'floor (sleep loop, same schedule):':<40}{stats(floor_err)}")
+    print(f"  {'floor (sleep loop, same schedule):':<48}{stats(floor_err)}")
     result = {}
-    for label, rt in (("player", 0), ("player_rt", 10)):
-        errors, p99, own = play(bag, counts, duration_s, tmp, env, rt)
-        name = "player, SCHED_FIFO 10" if rt else "player"
-        print(f"  {name + ' (publish - due):':<40}{own}  p99_vs_floor {p99 / p99_floor:.2f} x")
-        print(f"  {name + ' (delivered):':<40}{stats(errors)}")
+    runs = (
+        ("player_single_threaded", 0, "single_threaded", "player, SingleThreadedExecutor"),
+        ("player", 0, "events", "player"),
+        ("player_rt", 10, "events", "player, SCHED_FIFO 10"),
+    )
+    for label, rt, executor, name in runs:
+        errors, p99, own = play(bag, counts, duration_s, tmp, env, rt, executor)
+        print(f"  {name + ' (publish - due):':<48}{own}  p99_vs_floor {p99 / p99_floor:.2f} x")
+        print(f"  {name + ' (delivered):':<48}{stats(errors)}")
         result[label] = p99
         result[label.replace("player", "delivered")] = float(np.percentile(errors, 99) * 1e3)
+    base = result["player_single_threaded"]
+    print(f"  player p99 with SingleThreadedExecutor / EventsExecutor (default): "
+          f"{base / result['player']:.2f} x")  # fmt: skip
     return result
 
 

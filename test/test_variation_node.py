@@ -227,7 +227,9 @@ def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
     ]
     median = float(np.median(lag))
     print(f"lag behind the reference: median {median * 1e3:.1f} ms, max {max(lag) * 1e3:.1f} ms")
-    assert median < 3 * period, median
+    # Budget: the look-ahead (pair 2n-1, 2n goes out with cycle 2n+1: 1.5 cycles on average),
+    # the 2 ms quiet that ends a batch, one window's solve (~2.5 ms) and DDS: ~13 ms measured.
+    assert median < 4 * period, median
     timing = re.search(r"processing: .*", node.output)
     print(timing.group(0) if timing else node.output)
 
