@@ -155,6 +155,35 @@ def variation_settings(scenario: Scenario) -> tuple[int, str]:
     return int(cfg.get("method", 2)), str(cfg.get("gravity", "full"))
 
 
+def bag_custom_data(scenario: Scenario) -> dict[str, str]:
+    """The bag metadata ``custom_data`` describing how a scenario's streams were made.
+
+    ``generator``, ``scenario`` (name), ``rate_hz``, the gravitation model and, for the sections
+    the scenario has, ``variation.method`` / ``variation.gravity``, ``navigator.algorithm`` /
+    ``navigator.mode`` and ``imu_errors.preset`` / ``imu_errors.seed``; ``strapdown-sim
+    report`` names the variation method from it. Written by ``generate`` and ``bag_recorder``.
+    """
+    data = {
+        "generator": "strapdown_ros",
+        "scenario": scenario.name,
+        "rate_hz": f"{scenario.rate_hz:g}",
+        "gravity_model": str(scenario.gravity_model),
+    }
+    if scenario.variation is not None:
+        method, gravity = variation_settings(scenario)
+        data["variation.method"], data["variation.gravity"] = str(method), gravity
+    if scenario.navigator is not None:
+        from strapdown_ros.navigator import navigator_settings
+
+        settings = navigator_settings(scenario)
+        data["navigator.algorithm"], data["navigator.mode"] = settings.algorithm, settings.mode
+    if scenario.imu_errors is not None:
+        for key in ("preset", "seed"):
+            if key in scenario.imu_errors:
+                data[f"imu_errors.{key}"] = str(scenario.imu_errors[key])
+    return data
+
+
 def scenario_offsets(scenario: Scenario, samples: int) -> OffsetArrays:
     """Offsets of the scenario's ``variation`` section on the output cycle grid m = 0..N-1."""
     from strapdown_ros.core.offsets import offset_history
@@ -437,7 +466,8 @@ def generate_dataset(
     done = 0
     parts: dict[str, list[Residuals]] = {}
     try:
-        with BagWriter(out, storage=storage, force=force) as writer:
+        custom_data = bag_custom_data(scenario)
+        with BagWriter(out, storage=storage, force=force, custom_data=custom_data) as writer:
             for cycles, res, batches, nav_errors in producer:  # type: ignore[misc]
                 writer.write_batches(batches)
                 summary.navigation = nav_errors

@@ -132,7 +132,10 @@ def test_records_exactly_what_generate_writes(storage, bag3, procs, ros_env, tmp
         assert re.search(rf"{re.escape(topic)} +{n} msgs", out_log), rec.describe()
     assert "stopping (every publisher is gone)" in out_log
     meta = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-    assert meta["custom_data"]["scenario"] == "default"
+    custom = meta["custom_data"]
+    assert custom["scenario"] == "default" and custom["recorder"] == "bag_recorder"
+    # what generate writes too (dataset.bag_custom_data); this scenario has no variation
+    assert custom["rate_hz"] == "200" and "variation.method" not in custom
     with AnyReader([out]) as reader:  # the publishers' offered QoS, as ros2 bag record stores it
         assert {c.topic for c in reader.connections} == set(TOPICS)
         assert all(c.ext.offered_qos_profiles == [DEFAULT_QOS] for c in reader.connections)

@@ -235,6 +235,20 @@ def test_method1_vs_method2(bags: dict[str, Path]) -> None:
     assert "share 0 time stamps" in compare_streams(m1.streams["/variation"], "a", shifted, "b")
 
 
+def test_generate_records_the_method_for_the_labels(bags: dict[str, Path]) -> None:
+    """``generate`` stores how the streams were made in the bag's custom_data, and the report
+    names the variation method in its legends from it."""
+    from strapdown_ros.report import method_of
+
+    for src, method in ((bags["generated"], 2), (bags["dir"] / "gen_m1", 1)):
+        custom = read_bag(src).custom_data
+        assert custom["variation.method"] == str(method), custom
+        assert custom["scenario"] and custom["rate_hz"] == "200"
+        assert method_of(load_bag(src, exactness=False)) == method
+    custom = read_bag(bags["generated"]).custom_data
+    assert custom["navigator.mode"] == "exact" and custom["imu_errors.preset"] == "tactical"
+
+
 def test_rerun_replaces_old_plots(bags: dict[str, Path]) -> None:
     """Plots of an earlier report that no longer apply are removed, other files kept."""
     out = bags["dir"] / "rerun"

@@ -34,6 +34,7 @@ __all__ = [
     "declare_int",
     "declare_number",
     "declare_run_control",
+    "declare_scenario",
     "declare_string",
     "declare_string_array",
     "declare_subscriber_counts",
@@ -103,6 +104,31 @@ def declare_int(
     if minimum is not None and value < minimum:
         raise ParameterError(name, f"must be >= {minimum}, got {value}")
     return value
+
+
+def declare_scenario(node: Node, required: bool = True, what: str = "") -> Any:
+    """Declare ``scenario`` (a YAML path), ``overrides`` and ``duration_s``; load the scenario.
+
+    Returns the :class:`~strapdown_ros.scenario.Scenario` (None when ``required`` is False and
+    no path is given). ``what`` says what the node takes from it, for the description. Raises
+    :class:`ParameterError` for a missing path or a negative duration and
+    :class:`~strapdown_ros.scenario.ScenarioError` for an invalid file.
+    """
+    from strapdown_ros.scenario import load_scenario
+
+    path = declare_string(
+        node, "scenario", "", f"scenario YAML file{f' ({what})' if what else ''}"
+        + (" (required)" if required else "")
+    )
+    overrides = declare_string_array(node, "overrides", "scenario overrides dotted.key=value")
+    duration_s = declare_number(node, "duration_s", 0.0, "duration (s); 0 = the scenario's")
+    if not path:
+        if required:
+            raise ParameterError("scenario", "is required (the path of a scenario YAML file)")
+        return None
+    if duration_s < 0:
+        raise ParameterError("duration_s", f"must be >= 0, got {duration_s}")
+    return load_scenario(path, overrides, duration_s if duration_s > 0 else None)
 
 
 def declare_string_array(node: Node, name: str, description: str = "") -> list[str]:

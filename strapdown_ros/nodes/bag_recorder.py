@@ -162,7 +162,9 @@ class BagRecorder(Node):
             self.topics[name] = _Topic(name, msgtype)
         self.custom_data = {"generator": "strapdown_ros", "recorder": NODE_NAME}
         if scenario is not None:
-            self.custom_data["scenario"] = scenario.name
+            from strapdown_ros.dataset import bag_custom_data
+
+            self.custom_data = {**bag_custom_data(scenario), "recorder": NODE_NAME}
         self.recording: Recording | None = None
         self._stop_reason: str | None = None
         self.get_logger().info(

@@ -27,37 +27,22 @@ Behaviour: docs/theory/imu_errors.md; the scenario section: docs/scenarios.md. P
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
-
-import rclpy
-from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.node import Node
+from typing import Any
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.imu_model import MeasuredImuStream, format_stamp, imu_model_topics
+from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    InputBatch,
     ParameterError,
-    declare_batch_period,
-    declare_number,
-    declare_run_control,
+    declare_scenario,
     declare_string,
-    declare_string_array,
-    drain_publishers,
     message_class,
     qos_from_parameters,
     run_node,
-    wait_for_subscriptions,
 )
-from strapdown_ros.scenario import Scenario, load_scenario
+from strapdown_ros.scenario import Scenario
 
 NODE_NAME = "imu_model_node"
-#: Seconds to wait for the subscribers' acknowledgements when done, then the grace period.
-DRAIN_TIMEOUT_S = 10.0
-GRACE_S = 0.5
 
 
 def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
@@ -74,19 +59,12 @@ def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
     return cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
 
 
-class ImuModelNode(Node):
+class ImuModelNode(BatchedInputNode):
     """Ideal Imu in; measured Imu out."""
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
-        path = declare_string(self, "scenario", "", "scenario YAML file (required)")
-        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
-        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
-        if not path:
-            raise ParameterError("scenario", "is required (the path of a scenario YAML file)")
-        if duration_s < 0:
-            raise ParameterError("duration_s", f"must be >= 0, got {duration_s}")
-        scenario = load_scenario(path, overrides, duration_s if duration_s > 0 else None)
+        scenario = declare_scenario(self)
         default_in, default_out = imu_model_topics(scenario)  # ScenarioError if no imu_errors
         self.input_topic = declare_string(
             self, "input_topic", default_in, "ideal Imu topic (default imu_errors.input_topic)"
@@ -100,13 +78,7 @@ class ImuModelNode(Node):
         if self.input_topic == self.output_topic:
             raise ParameterError("output_topic", f"equals the input topic {self.input_topic}")
         self.qos = qos_from_parameters(self)
-        self.batch = InputBatch(declare_batch_period(self))
-        run_control = declare_run_control(self, "the last cycle")
-        self.exit_when_done = run_control.exit_when_done
-        self.idle_timeout_s = run_control.idle_timeout_s
-        self.wait_for_subscribers = run_control.wait_for_subscribers
-        self.wait_timeout_s = run_control.wait_timeout_s
-        self.subscribers_per_topic = run_control.subscribers_per_topic
+        self.declare_batched_input("the last cycle")
 
         log = self.get_logger()
         self.stream = MeasuredImuStream(
@@ -119,13 +91,11 @@ class ImuModelNode(Node):
         )
         self.last_cycle = last_input_cycle(scenario, self.input_topic)
         try:
-            self.publisher = self.create_publisher(
-                message_class(cdr.IMU), self.output_topic, self.qos
-            )
+            self.add_output(self.output_topic, message_class(cdr.IMU), self.qos)
         except Exception as exc:  # invalid topic name
             raise ParameterError("output_topic", str(exc)) from exc
         self._subscription = None
-        self.started = False
+        self._started = False
         params = self.stream.params
         end = "" if self.last_cycle is None else f" up to cycle {self.last_cycle}"
         log.info(
@@ -135,84 +105,47 @@ class ImuModelNode(Node):
             f"output {self.output_topic}"
         )
 
-    def _subscribe(self) -> None:
+    # -- BatchedInputNode hooks -----------------------------------------------------------------
+
+    def _subscribe(self) -> str:
         try:
             self._subscription = self.create_subscription(
-                message_class(cdr.IMU), self.input_topic, self._on_message, self.qos, raw=True
+                message_class(cdr.IMU), self.input_topic, self._buffer(None), self.qos, raw=True
             )
         except Exception as exc:
             raise ParameterError("input_topic", str(exc)) from exc
+        return self.input_topic
 
-    def _on_message(self, payload: bytes) -> None:
-        self.started = True
-        self.batch.add(payload)  # processed in run(), batch by batch
+    def _process(self, items: list[Any]) -> None:
+        self._started = True
+        out = self.stream.on_payloads([payload for _, payload in items])
+        self._publish((self.output_topic, 0, data) for data in out)
 
-    def _process(self) -> None:
-        for data in self.stream.on_payloads(self.batch.take()):
-            self.publisher.publish(data)
+    @property
+    def started(self) -> bool:
+        return self._started
 
     @property
     def finished(self) -> bool:
         """The last cycle of the scenario's input stream has been processed."""
         return self.last_cycle is not None and self.stream.last_cycle >= self.last_cycle
 
-    def run(self, executor: Executor) -> int:
-        """Process the input until done (or a signal); return the exit status."""
-
-        def spin(timeout_s: float) -> None:
-            executor.spin_once(timeout_sec=timeout_s)
-
-        if self.wait_for_subscribers > 0 or self.subscribers_per_topic:
-            self.get_logger().info(
-                f"waiting for {self.wait_for_subscribers} subscription(s) on {self.output_topic}"
-            )
-            if not wait_for_subscriptions(
-                self,
-                [self.publisher],
-                self.wait_for_subscribers,
-                self.wait_timeout_s,
-                spin,
-                self.subscribers_per_topic,
-            ):
-                return EXIT_FAILURE
-        self._subscribe()
-        self.get_logger().info(f"subscribed to {self.input_topic}")
-        wall_start: float | None = None
-        batch = self.batch
-        batch.last_input = time.monotonic()
-        while rclpy.ok(context=self.context):
-            batch.spin(spin)
-            if batch.due():
-                self._process()
-            if wall_start is None and self.started:
-                wall_start = time.monotonic()
-            if not self.exit_when_done or not self.started:
-                continue
-            if self.finished:
-                break
-            if time.monotonic() - batch.last_input > self.idle_timeout_s:
-                self.get_logger().warning(
-                    f"no input for {self.idle_timeout_s:g} s; stopping (last cycle "
-                    f"{self.stream.describe(self.stream.last_cycle)})"
-                    if self.last_cycle is not None
-                    else f"no input for {self.idle_timeout_s:g} s; stopping"
-                )
-                break
-        if not rclpy.ok(context=self.context):
-            raise ExternalShutdownException()
-        s = self.stream
-        elapsed = time.monotonic() - (wall_start or time.monotonic())
-        last = format_stamp(s.t0_ns + s.last_cycle * s.period_ns) if s.last_cycle else "none"
-        self.get_logger().info(
-            f"published {s.published} measured messages on {self.output_topic} in {s.runs} "
-            f"run(s), {elapsed:.3f} s of wall time; last stamp {last}"
+    def _idle_stop(self) -> None:
+        timeout = self.run_control.idle_timeout_s
+        self.get_logger().warning(
+            f"no input for {timeout:g} s; stopping (last cycle "
+            f"{self.stream.describe(self.stream.last_cycle)})"
+            if self.last_cycle is not None
+            else f"no input for {timeout:g} s; stopping"
         )
-        self._drain(spin)
-        return EXIT_OK
 
-    def _drain(self, spin: Callable[[float], None]) -> None:
-        """Let the subscribers receive everything: acknowledgements, then a grace period."""
-        drain_publishers(self, [self.publisher], spin, DRAIN_TIMEOUT_S, GRACE_S)
+    def _summary(self, wall_s: float, cpu_s: float) -> str:
+        s = self.stream
+        last = format_stamp(s.t0_ns + s.last_cycle * s.period_ns) if s.last_cycle else "none"
+        return (
+            f"published {s.published} measured messages on {self.output_topic} in {s.runs} "
+            f"run(s), {wall_s:.3f} s of wall time (process CPU {cpu_s:.3f} s); last stamp {last}"
+        )
 
 
 def main(args: list[str] | None = None) -> int:

@@ -22,14 +22,10 @@ while running, 2 invalid parameter or scenario.
 from __future__ import annotations
 
 import dataclasses
-import time
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import rclpy
-from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.node import Node
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
@@ -44,28 +40,20 @@ from strapdown_ros.navigator import (
     initial_state_from_truth,
     parse_navigator,
 )
+from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    InputBatch,
     ParameterError,
-    declare_batch_period,
     declare_int,
     declare_number,
-    declare_run_control,
+    declare_scenario,
     declare_string,
-    declare_string_array,
-    drain_publishers,
     message_class,
     qos_from_parameters,
     run_node,
-    wait_for_subscriptions,
 )
-from strapdown_ros.scenario import DEFAULT_TOPICS, Scenario, ScenarioError, load_scenario
+from strapdown_ros.scenario import DEFAULT_TOPICS, Scenario, ScenarioError
 
 NODE_NAME = "navigator_node"
-DRAIN_TIMEOUT_S = 10.0
-GRACE_S = 0.5
 #: Truth messages kept for (re)starting runs.
 TRUTH_KEEP = 4096
 
@@ -376,20 +364,16 @@ class NavigatorSolver:
         ]
 
 
-class NavigatorNode(Node):
+class NavigatorNode(BatchedInputNode):
     """IMU (and truth) in; navigation solution and errors out."""
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
-        path = declare_string(self, "scenario", "", "scenario YAML file (its navigator section)")
-        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
-        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
-        scenario: Scenario | None = None
+        scenario: Scenario | None = declare_scenario(self, False, "its navigator section")
         section: dict[str, Any] = {}
         topics = dict(DEFAULT_TOPICS)
         gravity = "j2"
-        if path:
-            scenario = load_scenario(path, overrides, duration_s if duration_s > 0 else None)
+        if scenario is not None:
             section = dict(scenario.navigator or {})
             topics = dict(scenario.recording.topics)
             gravity = scenario.gravity_model
@@ -429,13 +413,7 @@ class NavigatorNode(Node):
                 self, f"{key}_topic", topics[rec_key], f"output topic (recording.topics.{rec_key})"
             )
         self.qos = qos_from_parameters(self)
-        self.batch = InputBatch(declare_batch_period(self))
-        run_control = declare_run_control(self, "the last output")
-        self.exit_when_done = run_control.exit_when_done
-        self.idle_timeout_s = run_control.idle_timeout_s
-        self.wait_for_subscribers = run_control.wait_for_subscribers
-        self.wait_timeout_s = run_control.wait_timeout_s
-        self.subscribers_per_topic = run_control.subscribers_per_topic
+        self.declare_batched_input("the last output")
 
         end_ns = None
         if scenario is not None:
@@ -454,25 +432,25 @@ class NavigatorNode(Node):
             error=lambda m: log.error(m, throttle_duration_sec=1.0),
         )
         self.settings = settings
-        self._pubs = {}
         for key, topic in out_topics.items():
             if key.startswith("error") and not settings.truth_topic:
                 continue
             msgtype = {"odom": cdr.ODOMETRY, "fix": cdr.NAVSATFIX}.get(key, cdr.VECTOR3_STAMPED)
             try:
-                self._pubs[topic] = self.create_publisher(message_class(msgtype), topic, self.qos)
+                self.add_output(topic, message_class(msgtype), self.qos)
             except Exception as exc:
                 raise ParameterError(f"{key}_topic", str(exc)) from exc
-        self.counts = dict.fromkeys(self._pubs, 0)
         self._subs: list = []
         log.info(
             f"{settings.algorithm} navigator, mode {settings.mode}, N = "
             f"{'T_nav/T' if nav_period_s else settings.n}, P = {settings.p}; input "
             f"{settings.imu_topic}" + (f" + truth {settings.truth_topic}" if settings.truth_topic
-                                       else "") + "; output " + ", ".join(self._pubs)
+                                       else "") + "; output " + ", ".join(self.output_pubs)
         )  # fmt: skip
 
-    def _subscribe(self) -> None:
+    # -- BatchedInputNode hooks -----------------------------------------------------------------
+
+    def _subscribe(self) -> str:
         st = self.settings
         inputs = [(st.imu_topic, cdr.IMU, "imu", "imu_topic")]
         if st.truth_topic:
@@ -481,70 +459,39 @@ class NavigatorNode(Node):
             try:
                 self._subs.append(
                     self.create_subscription(
-                        message_class(msgtype), topic, self._callback(kind), self.qos, raw=True
+                        message_class(msgtype), topic, self._buffer(kind), self.qos, raw=True
                     )
                 )
             except Exception as exc:
                 raise ParameterError(param, str(exc)) from exc
+        return " and ".join(topic for topic, *_ in inputs)
 
-    def _callback(self, kind: str) -> Callable[[bytes], None]:
-        def on_message(payload: bytes) -> None:
-            self.batch.add((kind, payload))  # processed in run(), batch by batch
+    def _process(self, items: list[Any]) -> None:
+        self._publish(self.solver.on_batch(items))
 
-        return on_message
+    @property
+    def started(self) -> bool:
+        return self.solver.started
 
-    def _process(self) -> None:
-        for topic, _, data in self.solver.on_batch(self.batch.take()):
-            self._pubs[topic].publish(data)
-            self.counts[topic] += 1
+    @property
+    def finished(self) -> bool:
+        return self.solver.finished
 
-    def run(self, executor: Executor) -> int:
-        """Process the input until done (or a signal); return the exit status."""
+    def _failure(self) -> str | None:
+        return self.solver.failed
 
-        def spin(timeout_s: float) -> None:
-            executor.spin_once(timeout_sec=timeout_s)
+    def _idle_stop(self) -> None:
+        # Without a scenario the end of the input is unknown: stopping on idle is the normal end.
+        self.get_logger().info(f"no input for {self.run_control.idle_timeout_s:g} s; stopping")
 
-        if self.wait_for_subscribers > 0 or self.subscribers_per_topic:
-            self.get_logger().info(
-                f"waiting for {self.wait_for_subscribers} subscription(s) on every output topic"
-            )
-            if not wait_for_subscriptions(
-                self, list(self._pubs.values()), self.wait_for_subscribers,
-                self.wait_timeout_s, spin, self.subscribers_per_topic,
-            ):  # fmt: skip
-                return EXIT_FAILURE
-        self._subscribe()
-        self.get_logger().info(f"subscribed to {self.settings.imu_topic}")
-        batch = self.batch
-        batch.last_input = time.monotonic()
-        while rclpy.ok(context=self.context):
-            batch.spin(spin)
-            if batch.due():
-                self._process()
-            solver = self.solver
-            if solver.failed:
-                self.get_logger().error(f"stopping: {solver.failed}")
-                self._drain(spin)
-                return EXIT_FAILURE
-            if not self.exit_when_done or not solver.started:
-                continue
-            if solver.finished:
-                break
-            if time.monotonic() - batch.last_input > self.idle_timeout_s:
-                self.get_logger().info(f"no input for {self.idle_timeout_s:g} s; stopping")
-                break
-        if not rclpy.ok(context=self.context):
-            raise ExternalShutdownException()
+    def _summary(self, wall_s: float, cpu_s: float) -> str:
         s = self.solver
-        lines = [f"published {s.published_outputs} navigation outputs in {s.runs} run(s)"]
+        lines = [
+            f"published {s.published_outputs} navigation outputs in {s.runs} run(s) in "
+            f"{wall_s:.3f} s of wall time; process CPU {cpu_s:.3f} s"
+        ]
         lines += [f"  {t}: {n}" for t, n in self.counts.items()]
-        self.get_logger().info("\n".join(lines))
-        self._drain(spin)
-        return EXIT_OK
-
-    def _drain(self, spin: Callable[[float], None]) -> None:
-        """Let the subscribers receive everything: acknowledgements, then a grace period."""
-        drain_publishers(self, list(self._pubs.values()), spin, DRAIN_TIMEOUT_S, GRACE_S)
+        return "\n".join(lines)
 
 
 def _input_end_ns(scenario: Scenario, imu_topic: str) -> int | None:

@@ -36,8 +36,8 @@ from strapdown_ros.nodes._common import (
     declare_bool,
     declare_int,
     declare_number,
+    declare_scenario,
     declare_string,
-    declare_string_array,
     declare_subscriber_counts,
     message_class,
     qos_from_parameters,
@@ -45,7 +45,6 @@ from strapdown_ros.nodes._common import (
     wait_for_subscriptions,
 )
 from strapdown_ros.reference import build_trajectory, output_cycles
-from strapdown_ros.scenario import load_scenario
 
 NODE_NAME = "trajectory_node"
 TIME_SOURCES = ("sim", "wall")
@@ -120,23 +119,16 @@ class TrajectoryNode(Node):
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
-        path = declare_string(self, "scenario", "", "scenario YAML file (required)")
-        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
-        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
+        scenario = declare_scenario(self)
         self.time_source = declare_string(self, "time_source", "sim", "sim | wall")
         self.rate_factor = declare_number(
             self, "rate_factor", 1.0, "speed-up over real time; <= 0: as fast as possible"
         )
-        if not path:
-            raise ParameterError("scenario", "is required (the path of a scenario YAML file)")
-        if duration_s < 0:
-            raise ParameterError("duration_s", f"must be >= 0, got {duration_s}")
         if self.time_source not in TIME_SOURCES:
             raise ParameterError(
                 "time_source",
                 f"must be one of: {', '.join(TIME_SOURCES)}; got {self.time_source!r}",
             )
-        scenario = load_scenario(path, overrides, duration_s if duration_s > 0 else None)
         self.trajectory = build_trajectory(scenario)  # validates the trajectory's parameters
         self.cycles = output_cycles(scenario, self.trajectory)
 

@@ -29,35 +29,26 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
-import rclpy
-from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.node import Node
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.core.variation import GRAVITY_MODES, OffsetArrays, generate_variation
 from strapdown_ros.dataset import scenario_offsets, variation_batches, variation_settings
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
+from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    InputBatch,
     ParameterError,
-    declare_batch_period,
-    declare_number,
-    declare_run_control,
+    declare_scenario,
     declare_string,
-    declare_string_array,
-    drain_publishers,
     message_class,
     qos_from_parameters,
     run_node,
-    wait_for_subscriptions,
 )
 from strapdown_ros.reference import build_trajectory, output_cycles
-from strapdown_ros.scenario import Scenario, ScenarioError, load_scenario
+from strapdown_ros.scenario import Scenario, ScenarioError
 
 NODE_NAME = "variation_node"
 IMU, ODOM = "imu", "odom"
@@ -74,9 +65,6 @@ OUTPUT_PARAMETERS = {
     "variation_reference_imu_topic": "variation_reference_imu",
     "variation_reference_odom_topic": "variation_reference_odom",
 }
-#: Seconds to wait for the subscribers' acknowledgements when done, then the grace period.
-DRAIN_TIMEOUT_S = 10.0
-GRACE_S = 0.5
 
 Log = Callable[[str], None]
 #: An older stamp at most this many cycles behind the last one is a late message (dropped);
@@ -514,19 +502,12 @@ class VariationSolver:
 # ----------------------------------------------------------------------------------------------
 
 
-class VariationNode(Node):
+class VariationNode(BatchedInputNode):
     """Reference Imu/Odometry in; variation and regenerated reference out."""
 
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
-        path = declare_string(self, "scenario", "", "scenario YAML file (required)")
-        overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
-        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
-        if not path:
-            raise ParameterError("scenario", "is required (the path of a scenario YAML file)")
-        if duration_s < 0:
-            raise ParameterError("duration_s", f"must be >= 0, got {duration_s}")
-        scenario = load_scenario(path, overrides, duration_s if duration_s > 0 else None)
+        scenario = declare_scenario(self)
         if scenario.variation is None:
             raise ScenarioError("variation", "missing: the scenario defines no variation")
         method, gravity = _check_settings(scenario)
@@ -554,13 +535,7 @@ class VariationNode(Node):
         self.qos = qos_from_parameters(self)
         # A window costs ~2.3 ms of CPU plus ~0.1 ms per cycle (numpy call overhead on small
         # arrays dominates): batches of batch_period_s (default 10 ms) keep 1 kHz affordable.
-        self.batch = InputBatch(declare_batch_period(self))
-        run_control = declare_run_control(self, "the last cycle")
-        self.exit_when_done = run_control.exit_when_done
-        self.idle_timeout_s = run_control.idle_timeout_s
-        self.wait_for_subscribers = run_control.wait_for_subscribers
-        self.wait_timeout_s = run_control.wait_timeout_s
-        self.subscribers_per_topic = run_control.subscribers_per_topic
+        self.declare_batched_input("the last cycle")
 
         recording = dataclasses.replace(scenario.recording, topics=topics)
         self.scenario = dataclasses.replace(scenario, recording=recording)
@@ -574,123 +549,67 @@ class VariationNode(Node):
             error=lambda msg: log.error(msg, throttle_duration_sec=1.0),
         )
         self.inputs = {IMU: topics["reference_imu"], ODOM: topics["reference_odom"]}
-        self._publishers_by_topic = {}
-        self.counts: dict[str, int] = {}
         for key in OUTPUT_PARAMETERS.values():
             topic = topics[key]
             msgtype = cdr.NAVSATFIX if key.endswith("fix") else cdr.IMU
             msgtype = cdr.ODOMETRY if key.endswith("odom") else msgtype
             try:
-                self._publishers_by_topic[topic] = self.create_publisher(
-                    message_class(msgtype), topic, self.qos
-                )
+                self.add_output(topic, message_class(msgtype), self.qos)
             except Exception as exc:  # invalid topic name
                 raise ParameterError(names[topic], str(exc)) from exc
-            self.counts[topic] = 0
         self._input_subscriptions: list = []
-        self.failure: BaseException | None = None
         m_var = cycles - 1 - (cycles - 1) % 2
         log.info(
             f"scenario {scenario.path} ({scenario.name}): reference cycles 0..{cycles} at "
             f"{scenario.rate_hz:g} Hz, variation cycles 0..{m_var}, method {method}, gravity "
             f"{gravity}; input {self.inputs[IMU]}, {self.inputs[ODOM]}; output "
-            + ", ".join(self._publishers_by_topic)
+            + ", ".join(self.output_pubs)
         )
 
-    def _subscribe(self) -> None:
+    # -- BatchedInputNode hooks -----------------------------------------------------------------
+
+    def _subscribe(self) -> str:
         for kind, topic in self.inputs.items():
             msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
             try:
                 sub = self.create_subscription(
-                    message_class(msgtype), topic, self._callback(kind), self.qos, raw=True
+                    message_class(msgtype), topic, self._buffer(kind), self.qos, raw=True
                 )
             except Exception as exc:
                 param = next(p for p, k in INPUT_PARAMETERS.items() if k == f"reference_{kind}")
                 raise ParameterError(param, str(exc)) from exc
             self._input_subscriptions.append(sub)
+        return f"{self.inputs[IMU]} and {self.inputs[ODOM]}"
 
-    def _callback(self, kind: str) -> Callable[[bytes], None]:
-        def on_message(payload: bytes) -> None:
-            self.batch.add((kind, payload))  # processed in run(), batch by batch
+    def _process(self, items: list[Any]) -> None:
+        # A backlog is solved in longer windows (same bytes): the node catches up by itself.
+        self._publish(self.solver.on_batch(items))
 
-        return on_message
+    @property
+    def started(self) -> bool:
+        return self.solver.started
 
-    def _publish(self, items: list[tuple[str, int, bytes]]) -> None:
-        for topic, _, data in items:
-            self._publishers_by_topic[topic].publish(data)
-            self.counts[topic] += 1
+    @property
+    def finished(self) -> bool:
+        return self.solver.finished
 
-    # -----------------------------------------------------------------------------------------
-
-    def run(self, executor: Executor) -> int:
-        """Process the input until done (or a signal); return the exit status."""
-
-        def spin(timeout_s: float) -> None:
-            executor.spin_once(timeout_sec=timeout_s)
-
-        if not self._wait_for_subscribers(spin):
-            return EXIT_FAILURE
-        self._subscribe()
-        self.get_logger().info(f"subscribed to {self.inputs[IMU]} and {self.inputs[ODOM]}")
-        wall_start: float | None = None
-        cpu_start = 0.0
-        batch = self.batch
-        batch.last_input = time.monotonic()
-        while rclpy.ok(context=self.context):
-            # Messages wait at most batch_period_s (or until the input pauses); a backlog is
-            # solved in longer windows (same bytes), so the node catches up by itself.
-            batch.spin(spin)
-            if batch.due():
-                self._publish(self.solver.on_batch(batch.take()))
-            solver = self.solver
-            if wall_start is None and solver.started:
-                wall_start, cpu_start = time.monotonic(), time.process_time()
-            if not self.exit_when_done or not solver.started:
-                continue
-            if solver.finished:
-                break
-            if time.monotonic() - batch.last_input > self.idle_timeout_s:
-                self.get_logger().warning(
-                    f"no input for {self.idle_timeout_s:g} s; stopping before the end of the "
-                    f"scenario (last published: cycle {solver.published})"
-                )
-                break
-        if not rclpy.ok(context=self.context):
-            raise ExternalShutdownException()
-        wall = time.monotonic() - (wall_start or time.monotonic())
-        self._log_summary(wall, time.process_time() - cpu_start if wall_start else 0.0)
-        self._drain(spin)
-        return EXIT_OK
-
-    def _wait_for_subscribers(self, spin: Callable[[float], None]) -> bool:
-        wanted = self.wait_for_subscribers
-        if wanted <= 0 and not self.subscribers_per_topic:
-            return True
-        pubs = list(self._publishers_by_topic.values())
-        self.get_logger().info(
-            f"waiting for {wanted} subscription(s) on every output topic "
-            f"(timeout {self.wait_timeout_s:g} s)"
-        )
-        return wait_for_subscriptions(
-            self, pubs, wanted, self.wait_timeout_s, spin, self.subscribers_per_topic
+    def _idle_stop(self) -> None:
+        self.get_logger().warning(
+            f"no input for {self.run_control.idle_timeout_s:g} s; stopping before the end of "
+            f"the scenario (last published: cycle {self.solver.published})"
         )
 
-    def _drain(self, spin: Callable[[float], None]) -> None:
-        """Let the subscribers receive everything: acknowledgements, then a grace period."""
-        pubs = list(self._publishers_by_topic.values())
-        drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)
-
-    def _log_summary(self, elapsed: float, cpu: float) -> None:
+    def _summary(self, wall_s: float, cpu_s: float) -> str:
         s = self.solver
         total = sum(self.counts.values())
         lines = [
             f"published {total} messages ({s.published_cycles} cycles, {s.runs} run(s)) in "
-            f"{elapsed:.3f} s of wall time; process CPU {cpu:.3f} s "
-            f"({100 * cpu / max(elapsed, 1e-9):.0f} % of one core)",
+            f"{wall_s:.3f} s of wall time; process CPU {cpu_s:.3f} s "
+            f"({100 * cpu_s / max(wall_s, 1e-9):.0f} % of one core)",
             f"processing: {s.timing.summary(s.published_cycles)}",
         ]
         lines += [f"  {t}: {n}" for t, n in self.counts.items()]
-        self.get_logger().info("\n".join(lines))
+        return "\n".join(lines)
 
 
 def _check_settings(scenario: Scenario) -> tuple[int, str]:

@@ -1,0 +1,166 @@
+"""The run loop shared by the nodes that compute from their input (variation, navigator, IMU model).
+
+:class:`BatchedInputNode` holds what the three nodes do alike: the start-up handshake (wait for
+the output subscriptions, then subscribe), input in batches (:class:`~strapdown_ros.nodes.
+_common.InputBatch`), the stop conditions (done, ``idle_timeout_s``, a failure, a signal), the
+summary and the drain of the publishers. A subclass says what its input, processing and summary
+are by overriding the hooks below.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+import rclpy
+from rclpy.executors import Executor, ExternalShutdownException
+from rclpy.node import Node
+
+from strapdown_ros.nodes._common import (
+    EXIT_FAILURE,
+    EXIT_OK,
+    InputBatch,
+    RunControl,
+    declare_batch_period,
+    declare_run_control,
+    drain_publishers,
+    wait_for_subscriptions,
+)
+
+__all__ = ["BatchedInputNode"]
+
+#: Seconds to wait for the subscribers' acknowledgements when done, then the grace period.
+DRAIN_TIMEOUT_S = 10.0
+GRACE_S = 0.5
+
+
+class BatchedInputNode(Node):
+    """A node whose callbacks only buffer raw input that :meth:`run` processes in batches.
+
+    Subclasses call :meth:`declare_batched_input` in ``__init__``, put their publishers in
+    :attr:`output_pubs` (topic → publisher), subscribe with :meth:`_buffer` callbacks and
+    override :meth:`_subscribe`, :meth:`_process`, :attr:`started`, :attr:`finished`,
+    :meth:`_idle_stop` and :meth:`_summary` (and :meth:`_failure` if the input can make the
+    node give up). :meth:`_publish` sends serialized outputs and counts them per topic.
+    """
+
+    batch: InputBatch
+    run_control: RunControl
+
+    def declare_batched_input(self, done: str) -> None:
+        """Declare ``batch_period_s`` and the run-control parameters (``done``: what "done"
+        means for this node, for the parameter description)."""
+        self.batch = InputBatch(declare_batch_period(self))
+        self.run_control = declare_run_control(self, done)
+        self.output_pubs: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+
+    def add_output(self, topic: str, msg_class: type, qos: Any) -> None:
+        """Create the publisher of output ``topic`` (raises what ``create_publisher`` raises)."""
+        self.output_pubs[topic] = self.create_publisher(msg_class, topic, qos)
+        self.counts[topic] = 0
+
+    def _buffer(self, kind: Any) -> Callable[[bytes], None]:
+        """A raw-subscription callback that only buffers ``(kind, payload)`` for the loop."""
+
+        def on_message(payload: bytes) -> None:
+            self.batch.add((kind, payload))
+
+        return on_message
+
+    def _publish(self, items: Iterable[tuple[str, int, bytes]]) -> None:
+        """Publish serialized outputs ``(topic, stamp_ns, payload)`` in order; count them."""
+        pubs, counts = self.output_pubs, self.counts
+        for topic, _, data in items:
+            pubs[topic].publish(data)
+            counts[topic] += 1
+
+    # -- hooks ---------------------------------------------------------------------------------
+
+    def _subscribe(self) -> str:
+        """Create the input subscriptions; return what was subscribed (for the log)."""
+        raise NotImplementedError
+
+    def _process(self, items: list[Any]) -> None:
+        """Process (and publish the outputs of) one batch of buffered input."""
+        raise NotImplementedError
+
+    @property
+    def started(self) -> bool:
+        """The first input message has been processed."""
+        raise NotImplementedError
+
+    @property
+    def finished(self) -> bool:
+        """The last output the scenario's input allows has been published."""
+        raise NotImplementedError
+
+    def _failure(self) -> str | None:
+        """Why the node must stop with exit status 1 (None: it need not)."""
+        return None
+
+    def _idle_stop(self) -> None:
+        """Log that the node stops after ``idle_timeout_s`` without input."""
+        self.get_logger().warning(
+            f"no input for {self.run_control.idle_timeout_s:g} s; stopping before the end"
+        )
+
+    def _summary(self, wall_s: float, cpu_s: float) -> str:
+        """The end-of-run summary (wall and process CPU seconds since the first input)."""
+        raise NotImplementedError
+
+    # -- the loop ------------------------------------------------------------------------------
+
+    def run(self, executor: Executor) -> int:
+        """Process the input until done (or a signal); return the exit status."""
+
+        def spin(timeout_s: float) -> None:
+            executor.spin_once(timeout_sec=timeout_s)
+
+        rc = self.run_control
+        pubs = list(self.output_pubs.values())
+        if rc.wait_for_subscribers > 0 or rc.subscribers_per_topic:
+            self.get_logger().info(
+                f"waiting for {rc.wait_for_subscribers} subscription(s) on every output topic "
+                f"(timeout {rc.wait_timeout_s:g} s)"
+            )
+            if not wait_for_subscriptions(
+                self, pubs, rc.wait_for_subscribers, rc.wait_timeout_s, spin,
+                rc.subscribers_per_topic,
+            ):  # fmt: skip
+                return EXIT_FAILURE
+        self.get_logger().info(f"subscribed to {self._subscribe()}")
+        batch = self.batch
+        batch.last_input = time.monotonic()
+        wall_start: float | None = None
+        cpu_start = 0.0
+        status = EXIT_OK
+        while rclpy.ok(context=self.context):
+            # Messages wait at most batch_period_s (or until the input pauses); a node that
+            # fell behind takes longer batches (same output), so it catches up by itself.
+            batch.spin(spin)
+            if batch.due():
+                self._process(batch.take())
+            failure = self._failure()
+            if failure:
+                self.get_logger().error(f"stopping: {failure}")
+                status = EXIT_FAILURE
+                break
+            if wall_start is None and self.started:
+                wall_start, cpu_start = time.monotonic(), time.process_time()
+            if not rc.exit_when_done or not self.started:
+                continue
+            if self.finished:
+                break
+            if time.monotonic() - batch.last_input > rc.idle_timeout_s:
+                self._idle_stop()
+                break
+        if not rclpy.ok(context=self.context):
+            raise ExternalShutdownException()
+        if status == EXIT_OK:
+            wall = time.monotonic() - wall_start if wall_start is not None else 0.0
+            cpu = time.process_time() - cpu_start if wall_start is not None else 0.0
+            self.get_logger().info(self._summary(wall, cpu))
+        drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)
+        return status
