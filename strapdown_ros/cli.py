@@ -19,7 +19,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from strapdown_ros.scenario import ScenarioError, load_scenario
 
@@ -218,39 +219,44 @@ def _check(args: argparse.Namespace) -> int:
     return status
 
 
-def _run(args: argparse.Namespace) -> int:
-    from strapdown_ros.pipeline import PipelineError, run_pipeline
+def _live(command: str, call: Callable[[], Any]) -> Any:
+    """``call()`` of a live command (run, replay), or its exit status when it fails: 2 when the
+    output exists, 1 when a node process failed (its log is printed)."""
+    from strapdown_ros.pipeline import PipelineError
 
     try:
-        result = run_pipeline(
-            args.scenario, args.out, overrides=args.overrides, duration_s=args.duration,
-            storage=args.storage, force=args.force, rate_factor=args.rate_factor,
-            domain_id=args.domain_id, timeout_s=args.timeout,
-        )  # fmt: skip
+        return call()
     except FileExistsError as exc:
-        print(f"strapdown-sim run: {exc}", file=sys.stderr)
+        print(f"strapdown-sim {command}: {exc}", file=sys.stderr)
         return 2
     except PipelineError as exc:
-        print(f"strapdown-sim run: {exc}\n--- log ---\n{exc.log}", file=sys.stderr)
+        print(f"strapdown-sim {command}: {exc}\n--- log ---\n{exc.log}", file=sys.stderr)
         return 1
+
+
+def _run(args: argparse.Namespace) -> int:
+    from strapdown_ros.pipeline import run_pipeline
+
+    result = _live("run", lambda: run_pipeline(
+        args.scenario, args.out, overrides=args.overrides, duration_s=args.duration,
+        storage=args.storage, force=args.force, rate_factor=args.rate_factor,
+        domain_id=args.domain_id, timeout_s=args.timeout,
+    ))  # fmt: skip
+    if isinstance(result, int):
+        return result
     print(result.format())
     return 0 if not result.lost else 1
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from strapdown_ros.pipeline import PipelineError, replay_into_navigator
+    from strapdown_ros.pipeline import replay_into_navigator
 
-    try:
-        result = replay_into_navigator(
-            args.bag, args.out, scenario_path=args.scenario, overrides=args.overrides,
-            rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
-        )  # fmt: skip
-    except FileExistsError as exc:
-        print(f"strapdown-sim replay: {exc}", file=sys.stderr)
-        return 2
-    except PipelineError as exc:
-        print(f"strapdown-sim replay: {exc}\n--- log ---\n{exc.log}", file=sys.stderr)
-        return 1
+    result = _live("replay", lambda: replay_into_navigator(
+        args.bag, args.out, scenario_path=args.scenario, overrides=args.overrides,
+        rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
+    ))  # fmt: skip
+    if isinstance(result, int):
+        return result
     print(result.format())
     return 0 if not result.mismatches else 1
 

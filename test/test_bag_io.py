@@ -423,6 +423,29 @@ def test_refuse_overwrite_and_force(tmp_path):
         BagWriter(tmp_path / "x", storage="bag1")
 
 
+def test_incremental_writer_shares_the_destination_rules(tmp_path):
+    """The recorder's writer refuses and replaces exactly what BagWriter does."""
+    from strapdown_ros.bag.incremental import IncrementalBagWriter
+
+    out = tmp_path / "bag"
+    with BagWriter(out) as w:
+        write_stream_topics(w, moving_stream(cycles=3))
+    with pytest.raises(BagWriteError, match="exists already"):
+        IncrementalBagWriter(out).open()
+    rec = IncrementalBagWriter(out, force=True, custom_data={"k": "v"}).open()
+    rec.add_topic("/reference/imu", "sensor_msgs/msg/Imu")
+    rec.close()
+    new = read_bag(out)  # the old bag's topics are gone; the new one has one, empty
+    assert new.custom_data == {"k": "v"} and list(new.topics) == ["/reference/imu"]
+    assert len(new.topics["/reference/imu"].log_time_ns) == 0
+    other = tmp_path / "notabag"
+    other.mkdir()
+    (other / "precious.txt").write_text("keep me")
+    with pytest.raises(BagWriteError, match="not a rosbag2 bag"):
+        IncrementalBagWriter(other, force=True).open()
+    assert (other / "precious.txt").read_text() == "keep me"
+
+
 def test_no_half_written_bag_on_error(tmp_path):
     s = moving_stream(cycles=3)
     out = tmp_path / "bag"

@@ -30,12 +30,12 @@ from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import Writer
 
 from strapdown_ros.bag.writer import (
-    BAG_VERSION,
     DEFAULT_QOS,
     STORAGES,
     TYPESTORE,
     BagWriteError,
-    looks_like_bag,
+    check_destination,
+    open_rosbags_writer,
 )
 
 __all__ = ["IncrementalBagWriter"]
@@ -97,21 +97,10 @@ class IncrementalBagWriter:
         if self._writer is not None:
             raise BagWriteError("bag already open")
         p = self.path
-        if p.exists() or p.is_symlink():
-            if not self.force:
-                raise BagWriteError(f"{p} exists already; not overwriting (use force)")
-            if not p.is_dir() or p.is_symlink() or (any(p.iterdir()) and not looks_like_bag(p)):
-                raise BagWriteError(f"{p} exists and is not a bag directory; not replacing it")
+        if check_destination(p, self.force):
             shutil.rmtree(p)
         p.parent.mkdir(parents=True, exist_ok=True)
-        writer = Writer(p, version=BAG_VERSION, storage_plugin=STORAGES[self.storage])
-        for key, value in self.custom_data.items():
-            writer.set_custom_data(key, value)
-        try:
-            writer.open()
-        except Exception as exc:  # rosbags WriterError, OSError
-            raise BagWriteError(f"cannot create bag {p}: {exc}") from exc
-        self._writer = writer
+        self._writer = open_rosbags_writer(p, self.storage, self.custom_data)
         self._check_storage()
         self.flush()  # header (and sqlite schema) on disk before the first message
         return self

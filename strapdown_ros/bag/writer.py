@@ -45,8 +45,10 @@ __all__ = [
     "BagWriter",
     "BagWriteError",
     "batch",
+    "check_destination",
     "clock_batch",
     "looks_like_bag",
+    "open_rosbags_writer",
     "stream_batches",
     "write_stream_topics",
 ]
@@ -82,15 +84,45 @@ class BagWriteError(RuntimeError):
     """The bag cannot be written (destination exists, bad batch, ...)."""
 
 
-def _looks_like_bag(path: Path) -> bool:
+def looks_like_bag(path: Path) -> bool:
+    """True when the directory ``path`` has a ``metadata.yaml`` or a ``.mcap``/``.db3`` file."""
     if (path / "metadata.yaml").is_file():
         return True
     return any(p.suffix in {".mcap", ".db3"} for p in path.iterdir())
 
 
-def looks_like_bag(path: Path) -> bool:
-    """True when the directory ``path`` has a ``metadata.yaml`` or a ``.mcap``/``.db3`` file."""
-    return _looks_like_bag(path)
+def check_destination(path: Path, force: bool) -> bool:
+    """May a bag be written at ``path``? True if something is there that ``force`` replaces.
+
+    Only a bag directory (:func:`looks_like_bag`) or an empty directory is replaced, and only
+    with ``force``; anything else raises :class:`BagWriteError` saying why.
+    """
+    if not path.exists() and not path.is_symlink():
+        return False
+    if not force:
+        raise BagWriteError(f"{path} exists already; not overwriting (use force=True / --force)")
+    if not path.is_dir() or path.is_symlink():
+        raise BagWriteError(f"{path} exists and is not a bag directory; refusing to replace it")
+    if any(path.iterdir()) and not looks_like_bag(path):
+        raise BagWriteError(
+            f"{path} is a non-empty directory that is not a rosbag2 bag; refusing to replace it"
+        )
+    return True
+
+
+def open_rosbags_writer(path: Path, storage: str, custom_data: Mapping[str, str]) -> Writer:
+    """An open ``rosbags`` writer of a new bag at ``path`` with ``custom_data`` in its metadata.
+
+    Raises :class:`BagWriteError` when the bag cannot be created.
+    """
+    writer = Writer(path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+    for key, value in custom_data.items():
+        writer.set_custom_data(key, value)
+    try:
+        writer.open()
+    except Exception as exc:  # rosbags WriterError, OSError
+        raise BagWriteError(f"cannot create bag {path}: {exc}") from exc
+    return writer
 
 
 class BagWriter:
@@ -144,17 +176,7 @@ class BagWriter:
     # -- destination ---------------------------------------------------------------------------
 
     def _check_destination(self) -> None:
-        p = self.path
-        if not p.exists() and not p.is_symlink():
-            return
-        if not self.force:
-            raise BagWriteError(f"{p} exists already; not overwriting (use force=True / --force)")
-        if not p.is_dir() or p.is_symlink():
-            raise BagWriteError(f"{p} exists and is not a bag directory; refusing to replace it")
-        if any(p.iterdir()) and not _looks_like_bag(p):
-            raise BagWriteError(
-                f"{p} is a non-empty directory that is not a rosbag2 bag; refusing to replace it"
-            )
+        check_destination(self.path, self.force)
 
     # -- context management --------------------------------------------------------------------
 
@@ -168,14 +190,9 @@ class BagWriter:
             tempfile.mkdtemp(prefix=f".{self.path.name}.tmp-", dir=self.path.parent)
         )
         try:
-            writer = Writer(
-                self._tmpdir / self.path.name,
-                version=BAG_VERSION,
-                storage_plugin=STORAGES[self.storage],
+            writer = open_rosbags_writer(
+                self._tmpdir / self.path.name, self.storage, self.custom_data
             )
-            for key, value in self.custom_data.items():
-                writer.set_custom_data(key, value)
-            writer.open()
         except BaseException:
             self._cleanup()
             raise
