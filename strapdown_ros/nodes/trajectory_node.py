@@ -14,6 +14,7 @@ subscriber within ``wait_timeout_s``), 2 invalid parameter or scenario.
 
 from __future__ import annotations
 
+import array
 import dataclasses
 import queue
 import threading
@@ -26,6 +27,7 @@ from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
 from strapdown_ros.bag.batches import Batch, merge_order
+from strapdown_ros.bag.playback import pacing_stats
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.dataset import reference_batch_chunks
 from strapdown_ros.nodes._common import (
@@ -168,6 +170,7 @@ class TrajectoryNode(Node):
         self._msgtypes = self._topic_types()
         self._publishers_by_topic = {}
         self.counts: dict[str, int] = {}
+        self.errors = array.array("d")  # publish time - due time of each paced message (s)
         for topic, msgtype in self._msgtypes.items():
             try:
                 self._publishers_by_topic[topic] = self.create_publisher(
@@ -208,6 +211,8 @@ class TrajectoryNode(Node):
             if not self._wait_for_subscribers(spin):
                 return EXIT_FAILURE
             pacer: Pacer | None = None
+            paced = self.rate_factor > 0
+            errors = self.errors
             wall_start = time.monotonic()
             t_first = t_last = 0
             while (item := pieces.get(spin)) is not None:
@@ -223,6 +228,8 @@ class TrajectoryNode(Node):
                     pacer.wait(stamp, spin)
                     if not self.context.ok():  # SIGINT / SIGTERM (rclpy's signal handlers)
                         raise ExternalShutdownException()
+                    if paced:
+                        errors.append(time.monotonic() - pacer.due(stamp))
                     topic = batches[k].topic
                     pubs[k].publish(batches[k].payloads[i])
                     self.counts[topic] += 1
@@ -289,7 +296,12 @@ class TrajectoryNode(Node):
             f"time ({span / max(elapsed, 1e-9):.2f}x real time)"
         ]
         if pacer is not None and self.rate_factor > 0:
-            lines.append(f"max lateness {pacer.max_lateness_s * 1e3:.3f} ms")
+            st = pacing_stats(self.errors)
+            lines.append(
+                f"max lateness {pacer.max_lateness_s * 1e3:.3f} ms (pacing error publish - due "
+                f"over {st.count} messages: p50 {st.p50 * 1e3:.3f} ms, p99 {st.p99 * 1e3:.3f} "
+                f"ms, max {st.max * 1e3:.3f} ms)"
+            )
         lines += [f"  {t}: {n}" for t, n in self.counts.items()]
         self.get_logger().info("\n".join(lines))
 
