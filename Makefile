@@ -85,7 +85,7 @@ bench: setup $(BENCH_STAMP)
 
 # The main job: the live pipeline (nodes as processes over DDS, recorded into a bag) on the
 # default 10-minute flight at RUN_RATE_FACTOR x real time, then the report of the bag.
-RUN_RATE_FACTOR ?= 3
+RUN_RATE_FACTOR ?= 5
 run: setup
 	strapdown-sim run config/scenarios/default.yaml --out out/default --force \
 	    --rate-factor $(RUN_RATE_FACTOR)
