@@ -273,13 +273,15 @@ def _replay(procs, env, tmp_path, path, *faults: str) -> Proc:
 
 
 @pytest.mark.slow
-def test_node_equals_offline(bag, offline, procs, ros_env, tmp_path):
-    """replay → imu_model_node → recorder: the offline payloads, byte for byte."""
+@pytest.mark.parametrize("executor", ["events", "single_threaded"])
+def test_node_equals_offline(bag, offline, procs, ros_env, tmp_path, executor):
+    """replay → imu_model_node → recorder: the offline payloads, byte for byte, on either
+    executor (``single_threaded`` is the fallback where rclpy has no EventsExecutor)."""
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
     path, contents = bag
     deadline = time.monotonic() + TIMEOUT_S
     rec, out = _recorder(procs, ros_env, tmp_path, M_VAR, M_VAR + 1)
-    node = _node(procs, ros_env, tmp_path)
+    node = _node(procs, ros_env, tmp_path, f"executor:={executor}")
     node.wait_for(r"subscribed to /variation/imu", deadline)
     replay = _replay(procs, ros_env, tmp_path, path)
     assert replay.wait(deadline) == 0, replay.describe()
