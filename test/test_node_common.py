@@ -1,0 +1,71 @@
+"""The nodes' shared helpers that need no ROS graph: input batches and pacing.
+
+:class:`~strapdown_ros.nodes._common.InputBatch` decides when a node processes what its
+callbacks buffered: after a quiet spin (a 200 Hz cycle has arrived: processed at once) or when
+the oldest message has waited ``period_s`` (kHz input keeps coming: batches). Driven here with a
+fake ``spin`` that delivers scripted messages and advances nothing but the real clock.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
+
+from strapdown_ros.nodes._common import InputBatch, Pacer  # noqa: E402
+
+
+def _spinner(batch: InputBatch, arrivals: list[int]):
+    """A spin that delivers ``arrivals[k]`` messages on its k-th call (then none)."""
+    calls = iter(arrivals)
+
+    def spin(timeout_s: float) -> None:
+        n = next(calls, 0)
+        for _ in range(n):
+            batch.add(object())
+        if not n:
+            time.sleep(timeout_s)
+
+    return spin
+
+
+def test_quiet_spin_releases_the_batch() -> None:
+    batch = InputBatch(period_s=1.0, quiet_s=0.001)
+    spin = _spinner(batch, [1, 1, 0])  # a cycle's two messages, then quiet
+    batch.spin(spin)
+    assert not batch.due()  # a message arrived during this spin: the burst may go on
+    batch.spin(spin)
+    assert not batch.due()
+    batch.spin(spin)
+    assert batch.due() and len(batch.take()) == 2
+    batch.spin(spin)
+    assert not batch.due()  # nothing waits
+
+
+def test_continuous_input_is_batched_by_period() -> None:
+    batch = InputBatch(period_s=0.02, quiet_s=0.002)
+    spin = _spinner(batch, [1] * 10_000)  # never quiet
+    sizes = []
+    start = time.monotonic()
+    while time.monotonic() - start < 0.1:
+        batch.spin(spin)
+        if batch.due():
+            sizes.append(len(batch.take()))
+        time.sleep(0.001)
+    assert 1 <= len(sizes) <= 6  # at most one batch per 20 ms (fewer if the machine stalls)
+    assert min(sizes) >= 2  # never a message processed alone while input keeps coming
+
+
+def test_quiet_never_exceeds_the_period() -> None:
+    assert InputBatch(period_s=0.001, quiet_s=0.002).quiet_s == 0.001
+    assert InputBatch(period_s=0.01).quiet_s == InputBatch.QUIET_S
+
+
+def test_pacer_due_times_and_as_fast_as_possible() -> None:
+    p = Pacer(2.0, t0_ns=1_000_000_000, start=100.0)
+    assert p.due(1_000_000_000) == 100.0 and p.due(3_000_000_000) == pytest.approx(101.0)
+    fast = Pacer(0.0, t0_ns=0, start=5.0)
+    assert fast.due(10**12) == 5.0
+    fast.wait(10**12, spin=lambda t: pytest.fail("must not wait"))
