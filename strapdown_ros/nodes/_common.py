@@ -297,11 +297,11 @@ def make_executor(node: Node, kind: str) -> Executor:
     """A new executor of ``kind`` ('events' | 'single_threaded') holding ``node``.
 
     ``events`` is rclpy's ``EventsExecutor`` (C++ event queue, no wait-set rebuild per
-    callback): measured on the 2-core machine it takes a raw message in a few microseconds of
-    executor overhead against ~0.2 ms for ``SingleThreadedExecutor``, which is what lets the
-    five-process pipeline run 1 kHz in real time (docs/benchmarks.md). Nodes only ever call
-    ``spin_once`` on it (its ``spin()`` has been seen to hang at shutdown). Where rclpy has no
-    EventsExecutor (before Jazzy), the SingleThreadedExecutor is used.
+    callback). Switching the five pipeline nodes to it lowered their CPU by 0.15–0.3 ms per
+    received message (1 kHz, 2 cores; docs/benchmarks.md), which is what lets the pipeline run
+    1 kHz in real time. Nodes only ever call ``spin_once`` on it (its ``spin()`` has been seen
+    to hang at shutdown). Where rclpy has no EventsExecutor (older releases), the
+    SingleThreadedExecutor is used.
     """
     if kind not in EXECUTORS:
         raise ParameterError("executor", f"must be one of: {', '.join(EXECUTORS)}; got {kind!r}")
