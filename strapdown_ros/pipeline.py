@@ -183,6 +183,15 @@ def _stop_all(children: list[_Child]) -> None:
             c.proc.wait()
 
 
+def _reap(children: list[_Child]) -> None:
+    """No child outlives the caller: kill what still runs, close the logs."""
+    for c in children:
+        if c.proc.poll() is None:
+            c.proc.kill()
+            c.proc.wait()
+        c.close()
+
+
 def _executable(name: str) -> str:
     local = Path(sys.executable).parent / name
     return str(local) if local.exists() else name
@@ -366,11 +375,7 @@ def run_pipeline(
         _stop_all(children)
         raise
     finally:
-        for c in children:
-            if c.proc.poll() is None:
-                c.proc.kill()
-                c.proc.wait()
-            c.close()
+        _reap(children)
     contents = read_bag(out)
     counts = {t: len(d) for t, d in contents.topics.items()}
     return PipelineResult(
@@ -516,11 +521,7 @@ def replay_into_navigator(
         _stop_all(children)
         raise
     finally:
-        for c in children:
-            if c.proc.poll() is None:
-                c.proc.kill()
-                c.proc.wait()
-            c.close()
+        _reap(children)
     got = read_bag(out, raw=True)
     result = ReplayResult(out=out, reference="the offline navigator on the bag's messages")
     want = dict(expected.items()) if expected is not None else {}

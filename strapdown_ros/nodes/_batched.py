@@ -40,9 +40,11 @@ class BatchedInputNode(Node):
 
     Subclasses call :meth:`declare_batched_input` in ``__init__``, put their publishers in
     :attr:`output_pubs` (topic → publisher), subscribe with :meth:`_buffer` callbacks and
-    override :meth:`_subscribe`, :meth:`_process`, :attr:`started`, :attr:`finished`,
-    :meth:`_idle_stop` and :meth:`_summary` (and :meth:`_failure` if the input can make the
-    node give up). :meth:`_publish` sends serialized outputs and counts them per topic.
+    override :meth:`_subscribe`, :meth:`_idle_stop` and :meth:`_summary` (and :meth:`_failure`
+    if the input can make the node give up). By default a batch goes to ``self.solver`` (an
+    object with ``on_batch(items) -> [(topic, stamp_ns, payload)]``, ``started`` and
+    ``finished``); a node without one overrides :meth:`_process`, :attr:`started` and
+    :attr:`finished`. :meth:`_publish` sends serialized outputs and counts them per topic.
     """
 
     batch: InputBatch
@@ -84,17 +86,17 @@ class BatchedInputNode(Node):
 
     def _process(self, items: list[Any]) -> None:
         """Process (and publish the outputs of) one batch of buffered input."""
-        raise NotImplementedError
+        self._publish(self.solver.on_batch(items))  # type: ignore[attr-defined]
 
     @property
     def started(self) -> bool:
         """The first input message has been processed."""
-        raise NotImplementedError
+        return bool(self.solver.started)  # type: ignore[attr-defined]
 
     @property
     def finished(self) -> bool:
         """The last output the scenario's input allows has been published."""
-        raise NotImplementedError
+        return bool(self.solver.finished)  # type: ignore[attr-defined]
 
     def _failure(self) -> str | None:
         """Why the node must stop with exit status 1 (None: it need not)."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import re
+import signal
 import time
 import traceback
 from collections.abc import Callable
@@ -29,6 +30,7 @@ __all__ = [
     "Pacer",
     "ParameterError",
     "RunControl",
+    "SignalStop",
     "declare_batch_period",
     "declare_bool",
     "declare_int",
@@ -287,6 +289,32 @@ class Pacer:
             time.sleep(remaining)
             remaining = deadline - time.monotonic()
         self.max_lateness_s = max(self.max_lateness_s, -remaining)
+
+
+class SignalStop:
+    """Mixin of nodes that finish their work on SIGINT/SIGTERM (the recorder, the player).
+
+    After :meth:`take_stop_signals` a signal only sets ``_stop_reason`` (rclpy's handlers would
+    shut the context down at once), so the node still drains its queues and closes its bag; a
+    second signal sets ``drain_timeout_s`` to 0 (stop draining).
+    """
+
+    _stop_reason: str | None
+    drain_timeout_s: float
+
+    def take_stop_signals(self) -> None:
+        """Replace rclpy's SIGINT/SIGTERM handlers by :meth:`_on_signal`."""
+        from rclpy.signals import uninstall_signal_handlers
+
+        uninstall_signal_handlers()
+        signal.signal(signal.SIGINT, self._on_signal)
+        signal.signal(signal.SIGTERM, self._on_signal)
+
+    def _on_signal(self, signum: int, frame: object) -> None:
+        if self._stop_reason is None:
+            self._stop_reason = signal.Signals(signum).name
+        else:  # a second signal: stop draining
+            self.drain_timeout_s = 0.0
 
 
 #: Executors a node can run on (parameter ``executor``).

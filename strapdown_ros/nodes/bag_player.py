@@ -28,7 +28,6 @@ import array
 import contextlib
 import gc
 import os
-import signal
 import time
 from collections.abc import Callable, Iterator
 
@@ -51,6 +50,7 @@ from strapdown_ros.nodes._common import (
     EXIT_OK,
     Pacer,
     ParameterError,
+    SignalStop,
     declare_bool,
     declare_int,
     declare_number,
@@ -71,7 +71,7 @@ class _StopRequestedError(Exception):
     """SIGINT/SIGTERM arrived while the player was waiting."""
 
 
-class BagPlayer(Node):
+class BagPlayer(SignalStop, Node):
     """Publishes a bag's messages paced against the wall clock (see the module docstring)."""
 
     def __init__(self) -> None:
@@ -182,19 +182,9 @@ class BagPlayer(Node):
 
     # -----------------------------------------------------------------------------------------
 
-    def _on_signal(self, signum: int, frame: object) -> None:
-        if self._stop_reason is None:
-            self._stop_reason = signal.Signals(signum).name
-        else:
-            self.drain_timeout_s = 0.0
-
     def run(self, executor) -> int:
         """Play the bag; return the exit status."""
-        from rclpy.signals import uninstall_signal_handlers
-
-        uninstall_signal_handlers()
-        signal.signal(signal.SIGINT, self._on_signal)
-        signal.signal(signal.SIGTERM, self._on_signal)
+        self.take_stop_signals()
         try:
             if not self.played or self.source.message_count == 0:
                 self.get_logger().warning(

@@ -24,7 +24,6 @@ error; the bag is closed as far as possible), 2 invalid parameter or scenario.
 from __future__ import annotations
 
 import gc
-import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +47,7 @@ from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
     ParameterError,
+    SignalStop,
     declare_bool,
     declare_int,
     declare_number,
@@ -77,7 +77,7 @@ class _Topic:
     warned: set[str] = field(default_factory=set)
 
 
-class BagRecorder(Node):
+class BagRecorder(SignalStop, Node):
     """Records a topic list into a rosbag2 directory (see the module docstring)."""
 
     def __init__(self) -> None:
@@ -281,21 +281,11 @@ class BagRecorder(Node):
 
     # -- main loop -----------------------------------------------------------------------------
 
-    def _on_signal(self, signum: int, frame: object) -> None:
-        if self._stop_reason is None:
-            self._stop_reason = signal.Signals(signum).name
-        else:  # a second signal: stop draining
-            self.drain_timeout_s = 0.0
-
     def run(self, executor) -> int:
         """Record until a signal, ``max_duration_s`` or ``stop_when_done``; return the status."""
         # Our own handlers: a signal only sets a flag, so that the queued messages are still
         # taken and the bag is closed properly (rclpy's would shut the context down first).
-        from rclpy.signals import uninstall_signal_handlers
-
-        uninstall_signal_handlers()
-        signal.signal(signal.SIGINT, self._on_signal)
-        signal.signal(signal.SIGTERM, self._on_signal)
+        self.take_stop_signals()
 
         try:
             writer = IncrementalBagWriter(

@@ -466,17 +466,6 @@ class NavigatorNode(BatchedInputNode):
                 raise ParameterError(param, str(exc)) from exc
         return " and ".join(topic for topic, *_ in inputs)
 
-    def _process(self, items: list[Any]) -> None:
-        self._publish(self.solver.on_batch(items))
-
-    @property
-    def started(self) -> bool:
-        return self.solver.started
-
-    @property
-    def finished(self) -> bool:
-        return self.solver.finished
-
     def _failure(self) -> str | None:
         return self.solver.failed
 

@@ -29,7 +29,6 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -580,18 +579,6 @@ class VariationNode(BatchedInputNode):
                 raise ParameterError(param, str(exc)) from exc
             self._input_subscriptions.append(sub)
         return f"{self.inputs[IMU]} and {self.inputs[ODOM]}"
-
-    def _process(self, items: list[Any]) -> None:
-        # A backlog is solved in longer windows (same bytes): the node catches up by itself.
-        self._publish(self.solver.on_batch(items))
-
-    @property
-    def started(self) -> bool:
-        return self.solver.started
-
-    @property
-    def finished(self) -> bool:
-        return self.solver.finished
 
     def _idle_stop(self) -> None:
         self.get_logger().warning(
