@@ -10,7 +10,8 @@ variation) and with zero offsets (the regenerated reference). The new messages a
 by the same :func:`~strapdown_ros.dataset.variation_batches` as ``strapdown-sim generate`` and
 published raw in :func:`~strapdown_ros.bag.batches.merge_order`. Because every window
 reproduces the vectorized offline solution bit for bit, the published messages are identical to
-the bag's, byte for byte. The node is at most 2 cycles behind its input.
+the bag's, byte for byte. Input is taken in batches (:class:`~strapdown_ros.nodes._common.
+InputBatch`): the output lags the input by 1–2 cycles plus at most ``batch_period_s``.
 
 A gap, a duplicate with different content or an out-of-order stamp breaks that equivalence: it
 is logged (WARN, with the stamps) and the solution restarts from the next consistent cycle as a
