@@ -1,6 +1,6 @@
 """Benchmark: ``strapdown-sim generate`` on a scenario vs the bag-writing floor, same run.
 
-* ``total``: :func:`strapdown_ros.dataset.generate_dataset` end to end (validation, trajectory,
+* ``total``: :func:`strapdown_ros.generate.generate_dataset` end to end (validation, trajectory,
   Method 2 regeneration, messages, serialization, bag writing), best of ``--repeats``;
 * ``floor``: :class:`strapdown_ros.bag.writer.BagWriter` alone writing the very same,
   already serialized payloads (read back from the generated bag, every topic), best of
@@ -25,8 +25,8 @@ from pathlib import Path
 from strapdown_ros.bag.batches import Batch
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.bag.writer import BagWriter
-from strapdown_ros.dataset import generate_dataset
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.config import load_scenario
+from strapdown_ros.generate import generate_dataset
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 

@@ -142,6 +142,7 @@ def main(argv: list[str] | None = None) -> float:
         ) from None
     import numba
 
+    from strapdown_ros.config import parse_scenario
     from strapdown_ros.core.earth import dcm_ecef_to_ned, geodetic_to_ecef
     from strapdown_ros.core.exact_update import g_v
     from strapdown_ros.core.gravity import gravity_ned
@@ -155,8 +156,7 @@ def main(argv: list[str] | None = None) -> float:
     )
     from strapdown_ros.core.trajectory.samples import SamplesTrajectory, samples_from_arrays
     from strapdown_ros.core.young import young_error_angles
-    from strapdown_ros.reference import generate_reference
-    from strapdown_ros.scenario import parse_scenario
+    from strapdown_ros.stages.reference import generate_reference
 
     d2r, r2d = np.pi / 180.0, 180.0 / np.pi
     n_nav, p_nav, reps = args.n, args.p, max(1, args.repeats)

@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from strapdown_ros.config import load_scenario
 from strapdown_ros.core.navigation import (
     VerticalDamping,
     navigate_multirate,
@@ -63,9 +64,8 @@ from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.core.rotations import dcm_from_quat
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import generate_variation
-from strapdown_ros.dataset import scenario_offsets, variation_settings
-from strapdown_ros.reference import generate_reference
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.variation import scenario_offsets, variation_settings
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 #: IMU periods of Table 3 (ns): T_gyr = 8.33e-3 s (the scenario files) and 8.33e-4 s.

@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from strapdown_ros.scenario import ScenarioError, load_scenario
+from strapdown_ros.config import ScenarioError, load_scenario
 
 
 def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
@@ -153,7 +153,7 @@ class _ProgressBar:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from strapdown_ros.dataset import generate_dataset
+    from strapdown_ros.generate import generate_dataset
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
     try:
@@ -173,7 +173,7 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from strapdown_ros.reference import build_trajectory, natural_duration
+    from strapdown_ros.stages.reference import build_trajectory, natural_duration
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
     trajectory = build_trajectory(scenario)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from strapdown_ros.scenario import Scenario, load_scenario
+from strapdown_ros.config import Scenario, load_scenario
 
 __all__ = [
     "PipelineError",
@@ -95,8 +95,8 @@ class PipelineResult:
 
 def expected_counts(scenario: Scenario) -> dict[str, int]:
     """Message count of every topic the scenario produces (what ``generate`` writes)."""
-    from strapdown_ros.navigator import INPUT_STREAMS, navigator_settings
-    from strapdown_ros.reference import build_trajectory, output_cycles
+    from strapdown_ros.stages.navigation import INPUT_STREAMS, navigator_settings
+    from strapdown_ros.stages.reference import build_trajectory, output_cycles
     from strapdown_ros.topics import produced_keys
 
     cycles = output_cycles(scenario, build_trajectory(scenario))
@@ -246,7 +246,7 @@ def run_pipeline(
         ``out`` exists and ``force`` is false.
     """
     from strapdown_ros.bag.reader import read_bag
-    from strapdown_ros.navigator import navigator_settings
+    from strapdown_ros.stages.navigation import navigator_settings
 
     t_start = time.monotonic()
     scenario = load_scenario(scenario_path, list(overrides), duration_s)
@@ -429,12 +429,12 @@ def replay_into_navigator(
     ``navigator`` section, else the node's defaults) processes them; ``bag_recorder`` writes
     ``/navigator/*`` to ``out``. The recording is then compared payload for payload with the
     offline navigator on the same messages (the bag's own ``/navigator/*`` topics when they were
-    written with the same settings, else :func:`strapdown_ros.navigator.navigate_messages`).
+    written with the same settings, else :func:`strapdown_ros.stages.navigation.navigate_messages`).
     """
     from strapdown_ros.bag import cdr
     from strapdown_ros.bag.reader import read_bag
-    from strapdown_ros.navigator import OUTPUT_TOPICS, navigate_messages, parse_navigator
-    from strapdown_ros.scenario import DEFAULT_TOPICS
+    from strapdown_ros.config import DEFAULT_TOPICS
+    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, navigate_messages, parse_navigator
 
     t_start = time.monotonic()
     out = Path(out)

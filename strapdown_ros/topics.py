@@ -11,7 +11,7 @@ the navigator has a truth topic to compare with). Names come from the scenario's
 
 from __future__ import annotations
 
-from strapdown_ros.scenario import DEFAULT_TOPICS, Scenario
+from strapdown_ros.config import DEFAULT_TOPICS, Scenario
 
 __all__ = ["MSGTYPES", "produced_keys", "produced_topics", "spec_topics"]
 
@@ -72,7 +72,7 @@ def produced_keys(scenario: Scenario) -> list[str]:
 
 def _navigator_has_truth(scenario: Scenario) -> bool:
     """Whether the navigator compares with a truth topic (and so publishes its errors)."""
-    from strapdown_ros.navigator import navigator_settings
+    from strapdown_ros.stages.navigation import navigator_settings
 
     return bool(navigator_settings(scenario).truth_topic)
 
@@ -81,7 +81,7 @@ def produced_topics(scenario: Scenario) -> dict[str, str]:
     """Topic name -> message type (``pkg/msg/Name``) of every topic ``scenario`` produces."""
     names = dict(scenario.recording.topics)
     if scenario.imu_errors is not None:  # imu_errors.output_topic may rename the measured IMU
-        from strapdown_ros.imu_model import imu_model_topics
+        from strapdown_ros.stages.measurement import imu_model_topics
 
         names["variation_imu_measured"] = imu_model_topics(scenario)[1]
     return {names[key]: MSGTYPES[key] for key in produced_keys(scenario)}

@@ -31,7 +31,7 @@ from strapdown_ros.bag.payload import PayloadInspector
 from strapdown_ros.bag.reader import BagReadError, read_bag
 from strapdown_ros.bag.repair import BagRepairError, bag_info, repair_bag
 from strapdown_ros.bag.writer import DEFAULT_QOS, BagWriter
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.config import load_scenario
 from strapdown_ros.topics import produced_topics
 
 REPO = Path(__file__).resolve().parent.parent

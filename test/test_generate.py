@@ -13,13 +13,13 @@ import pytest
 import yaml
 
 from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.config import load_scenario, parse_scenario
 from strapdown_ros.core.exactness import reintegration_drift, stream_residuals
 from strapdown_ros.core.rotations import euler_from_dcm
 from strapdown_ros.core.trajectory.base import local_to_e0
-from strapdown_ros.dataset import generate_dataset
+from strapdown_ros.generate import generate_dataset
 from strapdown_ros.messages import navsatfix_geodetic, odometry_state, stream_from_messages
-from strapdown_ros.reference import build_trajectory, generate_reference
-from strapdown_ros.scenario import load_scenario, parse_scenario
+from strapdown_ros.stages.reference import build_trajectory, generate_reference
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "config" / "scenarios" / "default.yaml"
@@ -265,17 +265,16 @@ def test_validate_command_and_bad_key_message(tmp_path):
 
 def test_pieces_give_the_same_messages_as_one_stream(monkeypatch):
     """Chunked generation (bounded memory, overlapped writing) changes no byte of any message."""
-    from strapdown_ros import dataset, reference
+    from strapdown_ros.stages import reference
 
     scenario = load_scenario(DEFAULT, duration_s=30.0)
-    whole = dataset.reference_batches(scenario, generate_reference(scenario))
+    whole = reference.reference_batches(scenario, generate_reference(scenario))
+    chunks = reference.generate_reference_chunks
     monkeypatch.setattr(reference, "CHUNK_CYCLES", 1000)
     monkeypatch.setattr(
-        dataset,
-        "generate_reference_chunks",
-        lambda s, tr: reference.generate_reference_chunks(s, tr, 1000, 400),
+        reference, "generate_reference_chunks", lambda s, tr: chunks(s, tr, 1000, 400)
     )
-    pieces = list(dataset.reference_batch_chunks(scenario))
+    pieces = list(reference.reference_batch_chunks(scenario))
     assert len(pieces) == 7
     for k, b in enumerate(whole):
         joined = [p for _, batches in pieces for p in batches[k].payloads]
@@ -344,28 +343,26 @@ def test_bad_variation_key_is_rejected_before_work(tmp_path):
 def test_streamed_variation_equals_one_vectorized_run(monkeypatch):
     """generate computes the variation piece by piece (windows with lead=1) while writing; the
     messages equal those of one vectorized run over the whole decoded reference, bit for bit."""
-    from strapdown_ros import dataset, reference
+    from strapdown_ros.stages import reference, variation
 
     scenario = load_scenario(DEFAULT, duration_s=20.0)
+    chunks = reference.generate_reference_chunks
     monkeypatch.setattr(
-        dataset,
-        "generate_reference_chunks",
-        lambda s, tr: reference.generate_reference_chunks(s, tr, 600, 200),
+        reference, "generate_reference_chunks", lambda s, tr: chunks(s, tr, 600, 200)
     )
     ref_batches, var_batches = [], []
-    for _, batches in dataset.reference_batch_chunks(scenario):
+    for _, batches in reference.reference_batch_chunks(scenario):
         ref_batches.append(batches)
-    streamer = dataset._VariationStreamer(scenario, 4000)
+    streamer = variation._VariationStreamer(scenario, 4000)
     for batches in ref_batches:
         var_batches.append(streamer.feed(batches, {}))
     merged = [
-        dataset.Batch(g[0].topic, g[0].msgtype, np.concatenate([b.stamps_ns for b in g]),
+        variation.Batch(g[0].topic, g[0].msgtype, np.concatenate([b.stamps_ns for b in g]),
                       [p for b in g for p in b.payloads])
         for g in zip(*ref_batches, strict=True)
     ]  # fmt: skip
-    whole = dataset.variation_batches(
-        scenario, *dataset.variation_streams(scenario, dataset.decode_reference(scenario, merged))
-    )
+    decoded = reference.decode_reference(scenario, merged)
+    whole = variation.variation_batches(scenario, *variation.variation_streams(scenario, decoded))
     pieces = [b for b in var_batches if b]
     assert len(pieces) == len(ref_batches)
     for k, b in enumerate(whole):

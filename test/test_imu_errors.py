@@ -21,6 +21,7 @@ import math
 import numpy as np
 import pytest
 
+from strapdown_ros.config import ScenarioError, parse_scenario
 from strapdown_ros.core import allan
 from strapdown_ros.core.imu_errors import (
     G0,
@@ -31,7 +32,6 @@ from strapdown_ros.core.imu_errors import (
     ImuErrorsError,
     parse_imu_errors,
 )
-from strapdown_ros.scenario import ScenarioError, parse_scenario
 
 DEG = math.pi / 180.0
 DPH = DEG / 3600.0  # deg/h in rad/s

@@ -2,8 +2,8 @@
 
 A bag is generated offline for 2 s of the default scenario (its variation, no navigator). Its
 ideal ``/variation/imu`` is the input; the reference output is computed in this process by
-:func:`~strapdown_ros.imu_model.measured_imu_fields` on the whole stream at once (one model, one
-call) and serialized with the project's codec. Then, as separate processes over real DDS in this
+:func:`~strapdown_ros.stages.measurement.measured_imu_fields` on the whole stream at once
+(one model, one call) and serialized with the project's codec. Then, as separate processes over real DDS in this
 session's ROS domain:
 
 1. a replay process publishes the bag's ``/variation/imu`` (and ``/variation/odom``), the node
@@ -15,7 +15,7 @@ session's ROS domain:
    offline noise: they differ from the uninterrupted offline run by quantization only);
 3. invalid parameters or scenario: exit 2 naming the key.
 
-:class:`~strapdown_ros.imu_model.MeasuredImuStream` (no DDS) is also checked in-process.
+:class:`~strapdown_ros.stages.measurement.MeasuredImuStream` (no DDS) is also checked in-process.
 Every wait has a timeout; children are killed at teardown.
 """
 
@@ -35,14 +35,14 @@ from node_testing import Proc, bitwise_equal, executable, padded
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
 from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.core.imu_errors import ImuErrorModel, parse_imu_errors
-from strapdown_ros.imu_model import (
+from strapdown_ros.messages import imu_increments
+from strapdown_ros.stages.measurement import (
     MeasuredImuStream,
     generate_measured_stream,
     measured_imu_fields,
 )
-from strapdown_ros.messages import imu_increments
-from strapdown_ros.scenario import ScenarioError, load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
+from strapdown_ros.config import load_scenario
 from strapdown_ros.core.earth import dcm_ned_to_ecef, ecef_to_geodetic, geodetic_to_ecef
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.core.navigation.multirate import NavSolution, navigate_multirate
 from strapdown_ros.core.navigation.state import state_from_stream, truth_navigation
 from strapdown_ros.core.rotations import dcm_from_quat, dcm_from_rotvec, quat_from_dcm
 from strapdown_ros.core.young import C_NED_TO_UEN, young_angles_from_dcm
-from strapdown_ros.reference import generate_reference
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.stages.reference import generate_reference
 
 DEFAULT = "config/scenarios/default.yaml"
 

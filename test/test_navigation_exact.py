@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from strapdown_ros.config import load_scenario
 from strapdown_ros.core.exact_update import g_matrices
 from strapdown_ros.core.navigation import (
     MultirateNavigator,
@@ -27,8 +28,7 @@ from strapdown_ros.core.navigation import (
 )
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.reference import generate_reference
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.stages.reference import generate_reference
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from strapdown_ros.config import load_scenario
 from strapdown_ros.core.navigation import (
     NavSolution,
     NavState,
@@ -22,8 +23,7 @@ from strapdown_ros.core.navigation import (
 )
 from strapdown_ros.core.rotations import dcm_from_euler, quat_from_dcm
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.reference import generate_reference
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.stages.reference import generate_reference
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO_ROOT / "config" / "scenarios"

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from strapdown_ros.config import load_scenario
 from strapdown_ros.core.earth import OMEGA_IE, radii
 from strapdown_ros.core.gravity import gravity_ned
 from strapdown_ros.core.navigation import (
@@ -28,8 +29,7 @@ from strapdown_ros.core.rotations import (
 )
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.young import young_error_angles
-from strapdown_ros.reference import generate_reference
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.stages.reference import generate_reference
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 DURATION_S = 60.0

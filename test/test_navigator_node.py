@@ -24,11 +24,11 @@ import pytest
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.config import load_scenario
 from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.messages import stream_from_messages
-from strapdown_ros.navigator import navigator_settings
-from strapdown_ros.scenario import load_scenario
+from strapdown_ros.stages.navigation import navigator_settings
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
@@ -109,8 +109,8 @@ def test_generate_writes_navigator_streams(bag, scenario) -> None:
 
 
 def _solver(scenario, warnings):
-    from strapdown_ros.navigator import OUTPUT_TOPICS
-    from strapdown_ros.nodes.navigator_node import NavigatorSolver, _input_end_ns
+    from strapdown_ros.nodes.navigator_node import _input_end_ns
+    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, NavigatorSolver
 
     settings = navigator_settings(scenario)
     topics = {k: scenario.recording.topics[v] for k, v in OUTPUT_TOPICS.items()}
@@ -221,7 +221,7 @@ def test_solver_batches_equal_one_by_one(bag, scenario, size) -> None:
 
 
 def test_scenario_rejects_bad_navigator_sections() -> None:
-    from strapdown_ros.scenario import ScenarioError
+    from strapdown_ros.config import ScenarioError
 
     cases = {
         "navigator.mode=rk4": "navigator.mode",
@@ -241,8 +241,8 @@ def test_scenario_rejects_bad_navigator_sections() -> None:
 
 
 def test_initial_errors_show_in_the_first_output(scenario) -> None:
-    from strapdown_ros.navigator import initial_state_from_truth
-    from strapdown_ros.reference import generate_reference
+    from strapdown_ros.stages.navigation import initial_state_from_truth
+    from strapdown_ros.stages.reference import generate_reference
 
     s = load_scenario(
         SCENARIO,

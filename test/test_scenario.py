@@ -4,7 +4,7 @@ import textwrap
 
 import pytest
 
-from strapdown_ros.scenario import ScenarioError, apply_overrides, load_scenario, parse_scenario
+from strapdown_ros.config import ScenarioError, apply_overrides, load_scenario, parse_scenario
 
 BASE = {
     "rate_hz": 200,

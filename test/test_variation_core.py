@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from strapdown_ros.config import parse_scenario
 from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.rotations import dcm_from_euler, rotation_angle
 from strapdown_ros.core.variation import (
@@ -11,8 +12,7 @@ from strapdown_ros.core.variation import (
     generate_variation,
     variation_constraints,
 )
-from strapdown_ros.reference import generate_reference
-from strapdown_ros.scenario import parse_scenario
+from strapdown_ros.stages.reference import generate_reference
 
 SCENARIO = {
     "rate_hz": 200,

@@ -37,16 +37,16 @@ from node_testing import Proc, bitwise_equal, executable, padded  # noqa: E402
 from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.batches import Batch, merge_order, stream_batches  # noqa: E402
 from strapdown_ros.bag.reader import read_bag  # noqa: E402
+from strapdown_ros.config import load_scenario  # noqa: E402
 from strapdown_ros.core.exactness import stream_residuals  # noqa: E402
 from strapdown_ros.core.variation import OffsetArrays, _window, generate_variation  # noqa: E402
-from strapdown_ros.dataset import (  # noqa: E402
+from strapdown_ros.messages import stream_from_messages  # noqa: E402
+from strapdown_ros.stages.variation import (  # noqa: E402
+    VariationSolver,  # noqa: E402
     scenario_offsets,
     variation_batches,
     variation_settings,
 )
-from strapdown_ros.messages import stream_from_messages  # noqa: E402
-from strapdown_ros.nodes.variation_node import VariationSolver  # noqa: E402
-from strapdown_ros.scenario import load_scenario  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"

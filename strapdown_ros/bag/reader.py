@@ -6,23 +6,45 @@
 
 Failures are reported as :class:`BagReadError` with the path and what is wrong: missing
 directory, missing ``metadata.yaml``, unsupported storage, missing or truncated data file.
+
+The reader also describes bags (:func:`bag_info`, ``strapdown-sim bag info``), including those
+it cannot read (interrupted, truncated, foreign): their MCAP files are read with the format's
+own library, ``mcap`` (:class:`McapScan`, which ``strapdown-sim bag repair`` uses too).
 """
 
 from __future__ import annotations
 
+import datetime
+import io
 import os
-from collections.abc import Iterable
+import sqlite3
+import struct
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 from numpy.typing import NDArray
 from rosbags.rosbag2 import Reader
 
 from strapdown_ros.bag import cdr
 
-__all__ = ["BagContents", "BagReadError", "TopicData", "check_bag", "read_bag"]
+__all__ = [
+    "BagContents",
+    "BagReadError",
+    "McapScan",
+    "TopicData",
+    "bag_info",
+    "check_bag",
+    "read_bag",
+]
 
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -231,4 +253,357 @@ def read_bag(
         else:
             data.payloads = payloads[topic]
         out.topics[topic] = data
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# MCAP files read with the format's library, also when cut short
+
+
+#: What the ``mcap`` library raises on data it cannot read: its own errors (``EndOfFile``,
+#: ``InvalidMagic``, ``RecordLengthLimitExceeded``, unsupported compression), and, on a record cut
+#: inside a fixed-size field, the bare ``struct.error`` of its unpacking; ``ValueError`` covers
+#: chunk CRC mismatches (``CRCValidationError``) and undecodable strings.
+MCAP_READ_ERRORS = (McapError, struct.error, ValueError)
+
+
+class McapScan:
+    """The records of one MCAP file in file order, read with the ``mcap`` library.
+
+    :meth:`records` yields the Header, the Schema, Channel and Message records (those inside
+    chunks too: each chunk is broken up by ``mcap.stream_reader.breakup_chunk`` with its CRC
+    checked), Metadata and Attachment records, up to the end of the data section. Index and
+    summary records are not yielded (a writer rebuilds them).
+
+    A file cut short (a killed recorder) is read up to its last complete record. The library's
+    ``StreamReader`` does not stop there by itself: it raises (``EndOfFile``, or a bare
+    ``struct.error`` when the cut falls in a length field) and never yields a record it could
+    not read completely — so everything yielded before that is whole. What no library does is
+    done here by hand, and only that:
+
+    * find the offset of the record the reader stopped at (``StreamReader`` does not expose its
+      position): the 9-byte opcode/length prefixes are walked from the end of the last record
+      it yielded;
+    * salvage a **chunk cut short**: the library reads a chunk only whole (its padding read
+      raises first); the chunk's header fields are parsed with ``mcap.records.Chunk.read``, and
+      its records, if uncompressed (the recorder's are), with a second ``StreamReader`` over the
+      bytes that are there — which again yields only complete records. A compressed chunk cut
+      short cannot be decompressed: its messages are lost (noted).
+
+    After :meth:`records` is exhausted: ``complete`` (the data section end was reached),
+    ``end`` (offset just after the last complete record, or of the data section end),
+    ``salvaged`` (messages taken from a chunk cut short), ``notes``.
+    """
+
+    MAGIC = b"\x89MCAP0\r\n"
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.size = self.path.stat().st_size
+        self.complete = False
+        self.cut = False  #: the file ends inside a record
+        self.end = 0
+        self.salvaged = 0
+        self.notes: list[str] = []
+        with self.path.open("rb") as fh:
+            head = fh.read(len(self.MAGIC))
+        if head != self.MAGIC[: len(head)]:
+            raise BagReadError(f"{self.path.name} is not an MCAP file (no MCAP magic at its start)")
+
+    @property
+    def dropped(self) -> int:
+        """Bytes after the last complete record (0 for a file with a complete data section)."""
+        return 0 if self.complete else self.size - self.end
+
+    def records(self) -> Iterator[McapRecord]:
+        """Yield the records (see the class documentation); fills in the attributes."""
+        with self.path.open("rb") as fh:
+            if self.size < len(self.MAGIC):  # cut inside the magic: nothing in it
+                self.cut, self.end = True, 0
+                return
+            reader = StreamReader(fh, emit_chunks=True, record_size_limit=self.size)
+            self.end = len(self.MAGIC)
+            try:
+                for rec in reader.records:
+                    start, self.end = self.end, fh.tell()  # the reader stops at a record's end
+                    if isinstance(rec, Chunk):
+                        try:
+                            inner = breakup_chunk(rec, validate_crc=True)
+                        except MCAP_READ_ERRORS as exc:
+                            self.notes.append(
+                                f"chunk at byte {start} is corrupt ({exc}); its messages are "
+                                "skipped"
+                            )
+                            continue
+                        yield from inner
+                    elif isinstance(rec, (DataEnd, Footer)):
+                        self.complete = True
+                        return
+                    else:
+                        yield rec
+            except MCAP_READ_ERRORS as exc:
+                error = exc
+            else:  # pragma: no cover - StreamReader stops only at a footer or by raising
+                return
+            yield from self._after_stop(fh, error)
+
+    def _after_stop(self, fh: io.BufferedReader, error: Exception) -> Iterator[McapRecord]:
+        """By hand: where the reader stopped, and the complete records of a chunk cut short."""
+        pos = self.end
+        known = {int(op) for op in Opcode}
+        while True:
+            fh.seek(pos)
+            prefix = fh.read(9)
+            if len(prefix) < 9:  # cut inside an opcode/length prefix (or at a record boundary)
+                self.cut = pos < self.size
+                break
+            op, length = struct.unpack("<BQ", prefix)
+            if pos + 9 + length > self.size:  # the record the file was cut in
+                self.cut = True
+                if op == Opcode.CHUNK:
+                    yield from self._salvage_chunk(fh, pos)
+                break
+            if op in known:  # a whole record the library could not read: corrupt
+                self.notes.append(
+                    f"unreadable record (opcode 0x{op:02x}) at byte {pos}: "
+                    f"{type(error).__name__}: {error}; the {self.size - pos} bytes from there "
+                    "on are dropped"
+                )
+                break
+            pos += 9 + length  # a record of an unknown opcode the library skipped
+        self.end = pos
+
+    def _salvage_chunk(self, fh: io.BufferedReader, pos: int) -> Iterator[McapRecord]:
+        fh.seek(pos + 9)
+        try:
+            chunk = Chunk.read(ReadDataStream(io.BytesIO(fh.read())))
+        except MCAP_READ_ERRORS:
+            return  # cut inside the chunk's header fields: no record in it
+        if chunk.compression:
+            self.notes.append(
+                f"the chunk at byte {pos} is cut short and {chunk.compression}-compressed: its "
+                "messages cannot be recovered"
+            )
+            return
+        inner = StreamReader(
+            io.BytesIO(chunk.data), skip_magic=True, record_size_limit=len(chunk.data)
+        )
+        try:
+            for rec in inner.records:
+                if isinstance(rec, (Schema, Channel, Message)):
+                    self.salvaged += isinstance(rec, Message)
+                    yield rec
+        except MCAP_READ_ERRORS:
+            pass  # the record the chunk was cut in
+
+
+# ---------------------------------------------------------------------------------------------
+# bag info
+
+
+def bag_info(path: str | os.PathLike[str]) -> str:
+    """Describe the bag at ``path`` (``strapdown-sim bag info``).
+
+    A bag that reads: storage, files, start, duration, message count, ``custom_data`` and the
+    topics with counts, types and offered reliability, from ``metadata.yaml``. Any other
+    directory is described from what it holds — ``metadata.yaml`` if it loads, and each data
+    file as its own format reads it (MCAP with the ``mcap`` library, also when cut short; SQLite
+    read-only) — and the ``status:`` line says why it does not read and what to do (e.g. run
+    ``strapdown-sim bag repair``): an interrupted recording, a truncated data file, a foreign
+    MCAP file without ``metadata.yaml``, an empty directory.
+
+    Raises :class:`BagReadError` only when ``path`` is not a directory.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        what = "does not exist" if not path.exists() else "is not a directory"
+        raise BagReadError(f"bag directory {path} {what}")
+    try:
+        info, files = check_bag(path)
+    except BagReadError as exc:
+        return "\n".join(_describe_unreadable(path, str(exc)))
+    try:
+        lines = [f"bag:       {path}", "status:    complete, reads"]
+        return "\n".join(lines + _metadata_lines(info, files))
+    except (KeyError, TypeError, ValueError, AttributeError, OSError) as exc:
+        return "\n".join(_describe_unreadable(path, f"metadata.yaml is malformed: {exc!r}"))
+
+
+def _utc(ns: int) -> str:
+    sec, frac = divmod(int(ns), 1_000_000_000)
+    stamp = datetime.datetime.fromtimestamp(sec, tz=datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{stamp}.{frac:09d}Z"
+
+
+def _metadata_lines(info: dict, files: list[Path]) -> list[str]:
+    count = int(info.get("message_count", 0))
+    start = int((info.get("starting_time") or {}).get("nanoseconds_since_epoch", 0))
+    duration = int((info.get("duration") or {}).get("nanoseconds", 0))
+    size = sum(f.stat().st_size for f in files if f.is_file())
+    lines = [
+        f"storage:   {info['storage_identifier']} (metadata version {info.get('version')}), "
+        f"{', '.join(f.name for f in files)}, {size / 2**20:.1f} MiB",
+        f"start:     {_utc(start) if count else '-'}",
+        f"duration:  {duration * 1e-9:.3f} s",
+        f"messages:  {count}",
+    ]
+    custom = info.get("custom_data") or {}
+    if custom:
+        lines.append("custom:    " + ", ".join(f"{k}={v}" for k, v in custom.items()))
+    topics = info.get("topics_with_message_count") or []
+    width = max((len(t["topic_metadata"]["name"]) for t in topics), default=0)
+    lines.append(f"topics:    {len(topics)}")
+    for t in topics:
+        meta = t["topic_metadata"]
+        qos = meta.get("offered_qos_profiles") or []
+        rel = ",".join(sorted({str(q.get("reliability", "?")) for q in qos if isinstance(q, dict)}))
+        lines.append(
+            f"  {meta['name']:<{width}} {t['message_count']:>9}  {meta['type']}"
+            + (f"  [{rel}]" if rel else "")
+        )
+    return lines
+
+
+@dataclass
+class _FileContents:
+    """Topics, counts and times found in one data file (for :func:`bag_info`)."""
+
+    what: str
+    topics: dict[str, str] = field(default_factory=dict)  #: topic -> type
+    counts: dict[str, int] = field(default_factory=dict)
+    start: int | None = None
+    end: int | None = None
+
+    def add(self, topic: str, n: int, lo: int | None, hi: int | None) -> None:
+        self.counts[topic] = self.counts.get(topic, 0) + n
+        if n and lo is not None and hi is not None:
+            self.start = lo if self.start is None else min(self.start, lo)
+            self.end = hi if self.end is None else max(self.end, hi)
+
+
+def _describe_unreadable(path: Path, problem: str) -> list[str]:
+    data_files = sorted(p for p in path.iterdir() if p.suffix in {".mcap", ".db3"} and p.is_file())
+    has_meta = (path / "metadata.yaml").is_file()
+    lines = [f"bag:       {path}"]
+    if not data_files and not has_meta:
+        empty = "an empty directory" if not any(path.iterdir()) else "a directory"
+        lines.append(
+            f"status:    not a bag: {empty} without metadata.yaml and without a .mcap or .db3 "
+            "data file"
+        )
+        return lines
+    lines.append(f"status:    does not read as it is: {problem}")
+    if has_meta:
+        try:
+            info = _load_metadata(path)
+            listed = [path / Path(p).name for p in info["relative_file_paths"]]
+            lines += ["metadata.yaml says:"] + [
+                "  " + line for line in _metadata_lines(info, [f for f in listed if f.is_file()])
+            ]
+        except (BagReadError, KeyError, TypeError, ValueError, AttributeError) as exc:
+            lines.append(f"metadata.yaml: cannot be used ({exc})")
+    else:
+        lines.append("metadata.yaml: none")
+    found = _FileContents("")
+    for f in data_files:
+        try:
+            got = _mcap_contents(f) if f.suffix == ".mcap" else _sqlite_contents(f)
+        except (BagReadError, OSError, sqlite3.Error) as exc:
+            lines.append(f"file:      {f.name}: {exc}")
+            continue
+        lines.append(f"file:      {f.name}, {f.stat().st_size / 2**20:.1f} MiB: {got.what}")
+        for topic, msgtype in got.topics.items():
+            found.topics.setdefault(topic, msgtype)
+            found.add(topic, got.counts.get(topic, 0), got.start, got.end)
+    if not data_files:
+        return lines
+    total = sum(found.counts.values())
+    lines += [
+        "the data files hold:",
+        f"  start:     {_utc(found.start) if found.start is not None else '-'}",
+        f"  duration:  {((found.end or 0) - (found.start or 0)) * 1e-9:.3f} s",
+        f"  messages:  {total}",
+        f"  topics:    {len(found.topics)}",
+    ]
+    width = max((len(t) for t in found.topics), default=0)
+    lines += [
+        f"    {t:<{width}} {found.counts.get(t, 0):>9}  {msgtype}"
+        for t, msgtype in found.topics.items()
+    ]
+    return lines
+
+
+def _mcap_contents(f: Path) -> _FileContents:
+    """Topics and counts of an MCAP file: from its summary, else by reading it through."""
+    out = _FileContents("")
+    scan = McapScan(f)  # raises BagReadError when it is not an MCAP file
+    if scan.size >= 2 * len(McapScan.MAGIC):
+        try:
+            with f.open("rb") as fh:
+                reader = make_reader(fh)
+                header = reader.get_header()
+                summary = reader.get_summary()
+        except MCAP_READ_ERRORS:
+            summary = None
+        if summary is not None and summary.statistics is not None:
+            stats = summary.statistics
+            for cid, ch in summary.channels.items():
+                schema = summary.schemas.get(ch.schema_id)
+                out.topics.setdefault(ch.topic, schema.name if schema else "(no schema)")
+                n = stats.channel_message_counts.get(cid, 0)
+                out.add(ch.topic, n, stats.message_start_time, stats.message_end_time)
+            out.what = (
+                f"MCAP (profile {header.profile!r}, written by {header.library!r}), complete, "
+                "with summary"
+            )
+            return out
+    schemas: dict[int, str] = {}
+    channels: dict[int, str] = {}
+    profile = library = "?"
+    for rec in scan.records():
+        if isinstance(rec, Message):
+            topic = channels.get(rec.channel_id)
+            if topic is not None:
+                out.add(topic, 1, rec.log_time, rec.log_time)
+        elif isinstance(rec, Schema):
+            schemas[rec.id] = rec.name
+        elif isinstance(rec, Channel):
+            channels[rec.id] = rec.topic
+            out.topics.setdefault(rec.topic, schemas.get(rec.schema_id, "(no schema)"))
+        elif type(rec).__name__ == "Header":
+            profile, library = repr(rec.profile), repr(rec.library)  # type: ignore[attr-defined]
+    state = (
+        "complete data section, no summary"
+        if scan.complete
+        else f"cut short: {scan.dropped} bytes after its last complete record"
+        + (f" ({scan.salvaged} messages in a chunk cut short)" if scan.salvaged else "")
+    )
+    notes = "".join(f"; {n}" for n in scan.notes)
+    out.what = f"MCAP (profile {profile}, written by {library}), {state}{notes}"
+    return out
+
+
+def _sqlite_contents(f: Path) -> _FileContents:
+    """Topics and counts of a rosbag2 SQLite file, read-only (a hot journal is not rolled back)."""
+    journal = f.with_name(f.name + "-journal")
+    out = _FileContents(
+        "SQLite, with a rollback journal (an unfinished transaction)"
+        if journal.exists()
+        else "SQLite"
+    )
+    with f.open("rb") as fh:
+        if fh.read(16) != _SQLITE_MAGIC:
+            raise BagReadError("not an SQLite database")
+    con = sqlite3.connect(f"file:{f}?mode=ro", uri=True)
+    try:
+        rows = con.execute(
+            "SELECT name, type, count(messages.id), min(messages.timestamp), "
+            "max(messages.timestamp) FROM topics LEFT JOIN messages ON "
+            "topics.id == messages.topic_id GROUP BY topics.id ORDER BY topics.id"
+        ).fetchall()
+    finally:
+        con.close()
+    for name, msgtype, n, lo, hi in rows:
+        out.topics.setdefault(name, msgtype)
+        out.add(name, n, lo, hi)
     return out

@@ -1,7 +1,7 @@
 """Small helpers shared by the ROS nodes: typed parameters, QoS, message classes, pacing.
 
 Parameter problems raise :class:`ParameterError`; a node's ``main`` turns it (and
-:class:`~strapdown_ros.scenario.ScenarioError`) into exit status 2, as ``strapdown-sim`` does.
+:class:`~strapdown_ros.config.ScenarioError`) into exit status 2, as ``strapdown-sim`` does.
 """
 
 from __future__ import annotations
@@ -111,12 +111,12 @@ def declare_int(
 def declare_scenario(node: Node, required: bool = True, what: str = "") -> Any:
     """Declare ``scenario`` (a YAML path), ``overrides`` and ``duration_s``; load the scenario.
 
-    Returns the :class:`~strapdown_ros.scenario.Scenario` (None when ``required`` is False and
+    Returns the :class:`~strapdown_ros.config.Scenario` (None when ``required`` is False and
     no path is given). ``what`` says what the node takes from it, for the description. Raises
     :class:`ParameterError` for a missing path or a negative duration and
-    :class:`~strapdown_ros.scenario.ScenarioError` for an invalid file.
+    :class:`~strapdown_ros.config.ScenarioError` for an invalid file.
     """
-    from strapdown_ros.scenario import load_scenario
+    from strapdown_ros.config import load_scenario
 
     path = declare_string(
         node, "scenario", "", f"scenario YAML file{f' ({what})' if what else ''}"
@@ -354,7 +354,7 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
     ``events``). Exit status: 0 done or stopped by SIGINT/SIGTERM, 1 failure while running, 2
     invalid parameter or scenario (the message names it).
     """
-    from strapdown_ros.scenario import ScenarioError
+    from strapdown_ros.config import ScenarioError
 
     rclpy.init(args=args)
     logger = rclpy.logging.get_logger(name)

@@ -43,6 +43,7 @@ from strapdown_ros.bag.incremental import IncrementalBagWriter
 from strapdown_ros.bag.payload import PayloadError, PayloadInspector
 from strapdown_ros.bag.recording import LOG_TIMES, Handler, Recording
 from strapdown_ros.bag.writer import STORAGES, BagWriteError, looks_like_bag
+from strapdown_ros.config import load_scenario
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
@@ -56,7 +57,6 @@ from strapdown_ros.nodes._common import (
     message_class,
     run_node,
 )
-from strapdown_ros.scenario import load_scenario
 from strapdown_ros.topics import produced_topics, spec_topics
 
 NODE_NAME = "bag_recorder"
@@ -162,7 +162,7 @@ class BagRecorder(SignalStop, Node):
             self.topics[name] = _Topic(name, msgtype)
         self.custom_data = {"generator": "strapdown_ros", "recorder": NODE_NAME}
         if scenario is not None:
-            from strapdown_ros.dataset import bag_custom_data
+            from strapdown_ros.generate import bag_custom_data
 
             self.custom_data = {**bag_custom_data(scenario), "recorder": NODE_NAME}
         self.recording: Recording | None = None

@@ -1,7 +1,8 @@
 """``imu_model_node``: the scenario's IMU error model, live (SPEC §4, issue 7).
 
 It subscribes raw to an ideal Imu topic (default ``/variation/imu``), decodes every payload
-with the project's CDR codec, feeds it to a :class:`~strapdown_ros.imu_model.MeasuredImuStream`
+with the project's CDR codec, feeds it to a
+:class:`~strapdown_ros.stages.measurement.MeasuredImuStream`
 — the object ``strapdown-sim generate`` feeds with the same messages — and publishes the
 serialized result raw on the measured topic (default ``/variation/imu_measured``). The model
 is applied message by message with its state carried (random generator, bias processes,
@@ -30,7 +31,7 @@ from __future__ import annotations
 from typing import Any
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.imu_model import MeasuredImuStream, format_stamp, imu_model_topics
+from strapdown_ros.config import Scenario
 from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._common import (
     ParameterError,
@@ -40,7 +41,7 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.scenario import Scenario
+from strapdown_ros.stages.measurement import MeasuredImuStream, format_stamp, imu_model_topics
 
 NODE_NAME = "imu_model_node"
 
@@ -50,7 +51,7 @@ def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
 
     The reference IMU ends at cycle M, the variation streams at the last even cycle < M.
     """
-    from strapdown_ros.reference import build_trajectory, output_cycles
+    from strapdown_ros.stages.reference import build_trajectory, output_cycles
 
     key = next((k for k, v in scenario.recording.topics.items() if v == input_topic), None)
     if key not in ("reference_imu", "variation_imu", "variation_reference_imu"):

@@ -2,8 +2,8 @@
 
 It publishes exactly the messages ``strapdown-sim generate`` writes for the reference stream,
 in the same order: the very CDR payloads of
-:func:`strapdown_ros.dataset.reference_batch_chunks` (pieces of
-:func:`~strapdown_ros.dataset.reference_batches`), in
+:func:`strapdown_ros.stages.reference.reference_batch_chunks` (pieces of
+:func:`~strapdown_ros.stages.reference.reference_batches`), in
 :func:`~strapdown_ros.bag.batches.merge_order`, published raw. The message with stamp ``t`` is
 published at wall time ``start + (t - t0) / rate_factor``. Parameters and behaviour:
 docs/nodes.md.
@@ -29,7 +29,6 @@ from rclpy.node import Node
 from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.bag.playback import pacing_stats
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.dataset import reference_batch_chunks
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
     EXIT_OK,
@@ -46,7 +45,7 @@ from strapdown_ros.nodes._common import (
     run_node,
     wait_for_subscriptions,
 )
-from strapdown_ros.reference import build_trajectory, output_cycles
+from strapdown_ros.stages.reference import build_trajectory, output_cycles, reference_batch_chunks
 
 NODE_NAME = "trajectory_node"
 TIME_SOURCES = ("sim", "wall")

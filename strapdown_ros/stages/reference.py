@@ -24,11 +24,14 @@ from typing import Any
 
 import numpy as np
 
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
+from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.core.gravity import gravitation
 from strapdown_ros.core.method2 import method2, pair_displacement
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.trajectory.base import Trajectory, local_to_e0
-from strapdown_ros.scenario import Scenario, ScenarioError
+from strapdown_ros.messages import stream_from_messages
 
 __all__ = [
     "build_trajectory",
@@ -362,4 +365,61 @@ def _truncate(stream: Stream, cycles: int) -> Stream:
         c_b_e0=stream.c_b_e0[: cycles + 1],
         v_e0=stream.v_e0[: cycles + 1],
         r_e0=stream.r_e0[: cycles + 1],
+    )
+
+
+def reference_batches(scenario: Scenario, stream: Stream) -> list[Batch]:
+    """Serialized ``/reference/*`` (and ``/clock`` if recording.clock) batches of a scenario."""
+    rec = scenario.recording
+    batches = stream_batches(
+        stream,
+        imu_topic=rec.topics["reference_imu"],
+        odom_topic=rec.topics["reference_odom"],
+        fix_topic=rec.topics["reference_fix"],
+        body_frame=rec.frames["reference_imu"],
+        earth_frame=rec.frames["earth"],
+    )
+    if rec.clock:
+        batches.insert(0, clock_batch(stream.stamps_ns, rec.topics["clock"]))
+    return batches
+
+
+def reference_batch_chunks(
+    scenario: Scenario, trajectory: Trajectory | None = None
+) -> Iterator[tuple[Stream, list[Batch]]]:
+    """Pieces of the reference stream with their serialized batches, in stamp order.
+
+    Consecutive pieces share one truth sample; it is published (and written) once, with the
+    earlier piece. Concatenating the batches of all pieces gives exactly
+    ``reference_batches(scenario, generate_reference(scenario))``.
+    """
+    for k, piece in enumerate(generate_reference_chunks(scenario, trajectory)):
+        batches = reference_batches(scenario, piece)
+        if k:
+            batches = [_drop_up_to(b, piece.t0_ns) for b in batches]
+        yield piece, batches
+
+
+def _drop_up_to(b: Batch, stamp_ns: int) -> Batch:
+    keep = int(np.searchsorted(b.stamps_ns, stamp_ns, side="right"))
+    if keep == 0:
+        return b
+    return Batch(b.topic, b.msgtype, b.stamps_ns[keep:], b.payloads[keep:])
+
+
+def decode_reference(scenario: Scenario, batches: list[Batch]) -> Stream:
+    """The reference stream as a subscriber sees it: decoded from its Imu and Odometry payloads.
+
+    The variation is computed from this (not from the generator's arrays) so that the offline
+    path and ``variation_node``, which only has the messages, compute on identical numbers.
+    """
+    rec = scenario.recording
+    by_topic = {b.topic: b for b in batches}
+    imu = by_topic[rec.topics["reference_imu"]]
+    odom = by_topic[rec.topics["reference_odom"]]
+    return stream_from_messages(
+        cdr.deserialize(imu.msgtype, imu.payloads),  # type: ignore[arg-type]
+        cdr.deserialize(odom.msgtype, odom.payloads),  # type: ignore[arg-type]
+        scenario.gravity_model,
+        e0_epoch_ns=scenario.start_time_ns,
     )

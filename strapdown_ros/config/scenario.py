@@ -433,7 +433,7 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
     recording = _parse_recording(doc.get("recording"))
     navigator = section("navigator")
     if navigator is not None:
-        from strapdown_ros.navigator import parse_navigator
+        from strapdown_ros.stages.navigation import parse_navigator
 
         parse_navigator(
             navigator,

@@ -36,6 +36,7 @@ import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch
+from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.core.imu_errors import (
     ImuErrorModel,
     ImuErrorParameters,
@@ -48,7 +49,6 @@ from strapdown_ros.messages import (
     imu_fields_from_increments,
     imu_increments,
 )
-from strapdown_ros.scenario import Scenario, ScenarioError
 
 __all__ = [
     "MeasuredImuStream",
