@@ -3,8 +3,8 @@
 A bag is generated offline for 2 s of the default scenario (its variation, no navigator). Its
 ideal ``/variation/imu`` is the input; the reference output is computed in this process by
 :func:`~strapdown_ros.stages.measurement.measured_imu_fields` on the whole stream at once
-(one model, one call) and serialized with the project's codec. Then, as separate processes over real DDS in this
-session's ROS domain:
+(one model, one call) and serialized with the project's codec. Then, as separate processes over
+real DDS in this session's ROS domain:
 
 1. a replay process publishes the bag's ``/variation/imu`` (and ``/variation/odom``), the node
    turns it into ``/variation/imu_measured`` message by message, a raw recorder records it:

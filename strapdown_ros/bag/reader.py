@@ -29,7 +29,16 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import Channel, Chunk, DataEnd, Footer, McapRecord, Message, Schema
+from mcap.records import (
+    Channel,
+    Chunk,
+    DataEnd,
+    Footer,
+    Header,
+    McapRecord,
+    Message,
+    Schema,
+)
 from mcap.stream_reader import StreamReader, breakup_chunk
 from numpy.typing import NDArray
 from rosbags.rosbag2 import Reader
@@ -537,7 +546,10 @@ def _mcap_contents(f: Path) -> _FileContents:
     """Topics and counts of an MCAP file: from its summary, else by reading it through."""
     out = _FileContents("")
     scan = McapScan(f)  # raises BagReadError when it is not an MCAP file
-    if scan.size >= 2 * len(McapScan.MAGIC):
+    with f.open("rb") as fh:
+        fh.seek(max(0, scan.size - len(McapScan.MAGIC)))
+        ends_with_magic = fh.read() == McapScan.MAGIC and scan.size >= 2 * len(McapScan.MAGIC)
+    if ends_with_magic:  # make_reader needs the footer: a file cut short has none
         try:
             with f.open("rb") as fh:
                 reader = make_reader(fh)
@@ -570,8 +582,8 @@ def _mcap_contents(f: Path) -> _FileContents:
         elif isinstance(rec, Channel):
             channels[rec.id] = rec.topic
             out.topics.setdefault(rec.topic, schemas.get(rec.schema_id, "(no schema)"))
-        elif type(rec).__name__ == "Header":
-            profile, library = repr(rec.profile), repr(rec.library)  # type: ignore[attr-defined]
+        elif isinstance(rec, Header):
+            profile, library = repr(rec.profile), repr(rec.library)
     state = (
         "complete data section, no summary"
         if scan.complete
