@@ -280,7 +280,8 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _bag(args: argparse.Namespace) -> int:
-    from strapdown_ros.bag.repair import BagRepairError, bag_info, repair_bag
+    from strapdown_ros.bag.reader import bag_info
+    from strapdown_ros.bag.repair import BagRepairError, repair_bag
 
     try:
         if args.bag_command == "repair":

@@ -506,29 +506,29 @@ def _describe_unreadable(path: Path, problem: str) -> list[str]:
         try:
             info = _load_metadata(path)
             listed = [path / Path(p).name for p in info["relative_file_paths"]]
-            lines += ["metadata.yaml says:"] + [
-                "  " + line for line in _metadata_lines(info, [f for f in listed if f.is_file()])
-            ]
+            lines += ["metadata.yaml says:"] + ["  " + ln for ln in _metadata_lines(info, listed)]
         except (BagReadError, KeyError, TypeError, ValueError, AttributeError) as exc:
             lines.append(f"metadata.yaml: cannot be used ({exc})")
     else:
         lines.append("metadata.yaml: none")
     found = _FileContents("")
+    read = 0
     for f in data_files:
         try:
             got = _mcap_contents(f) if f.suffix == ".mcap" else _sqlite_contents(f)
         except (BagReadError, OSError, sqlite3.Error) as exc:
             lines.append(f"file:      {f.name}: {exc}")
             continue
+        read += 1
         lines.append(f"file:      {f.name}, {f.stat().st_size / 2**20:.1f} MiB: {got.what}")
         for topic, msgtype in got.topics.items():
             found.topics.setdefault(topic, msgtype)
             found.add(topic, got.counts.get(topic, 0), got.start, got.end)
-    if not data_files:
+    if not read:
         return lines
     total = sum(found.counts.values())
     lines += [
-        "the data files hold:",
+        "the data files hold:" if read == len(data_files) else "the data files read hold:",
         f"  start:     {_utc(found.start) if found.start is not None else '-'}",
         f"  duration:  {((found.end or 0) - (found.start or 0)) * 1e-9:.3f} s",
         f"  messages:  {total}",
@@ -584,12 +584,15 @@ def _mcap_contents(f: Path) -> _FileContents:
             out.topics.setdefault(rec.topic, schemas.get(rec.schema_id, "(no schema)"))
         elif isinstance(rec, Header):
             profile, library = repr(rec.profile), repr(rec.library)
-    state = (
-        "complete data section, no summary"
-        if scan.complete
-        else f"cut short: {scan.dropped} bytes after its last complete record"
-        + (f" ({scan.salvaged} messages in a chunk cut short)" if scan.salvaged else "")
-    )
+    if scan.complete:
+        state = "complete data section, no summary"
+    elif scan.dropped:
+        state = f"cut short: an incomplete record in its last {scan.dropped} bytes"
+    else:
+        state = "ends after a complete record, without data end, summary and footer"
+    if scan.salvaged:
+        state += f" ({scan.salvaged} complete messages in a chunk cut short)"
+
     notes = "".join(f"; {n}" for n in scan.notes)
     out.what = f"MCAP (profile {profile}, written by {library}), {state}{notes}"
     return out
@@ -597,15 +600,15 @@ def _mcap_contents(f: Path) -> _FileContents:
 
 def _sqlite_contents(f: Path) -> _FileContents:
     """Topics and counts of a rosbag2 SQLite file, read-only (a hot journal is not rolled back)."""
-    journal = f.with_name(f.name + "-journal")
-    out = _FileContents(
-        "SQLite, with a rollback journal (an unfinished transaction)"
-        if journal.exists()
-        else "SQLite"
-    )
     with f.open("rb") as fh:
         if fh.read(16) != _SQLITE_MAGIC:
             raise BagReadError("not an SQLite database")
+    if f.with_name(f.name + "-journal").exists():  # opening it would roll the journal back
+        raise BagReadError(
+            "SQLite with a rollback journal (an unfinished transaction, which `strapdown-sim "
+            "bag repair` rolls back); not opened here"
+        )
+    out = _FileContents("SQLite")
     con = sqlite3.connect(f"file:{f}?mode=ro", uri=True)
     try:
         rows = con.execute(

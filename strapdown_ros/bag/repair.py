@@ -5,48 +5,57 @@ A recorder killed without warning (SIGKILL, crash, power loss) leaves its data f
 partial record; an SQLite database may have a hot rollback journal. :func:`repair_bag` keeps
 every message that was completely written and rebuilds the rest:
 
-* **mcap**: the file is scanned record by record. Every complete chunk (and its schema and
-  channel records) is kept; a chunk cut short keeps its complete message records when it is
-  uncompressed (salvaged); anything after the last complete record is dropped. The file is
-  rewritten (into a temporary sibling, then renamed over the original) with uncompressed chunks,
-  fresh message indexes, a summary section (schemas, channels, chunk indexes, statistics) and
-  the footer; message payloads and log times are copied byte for byte.
+* **mcap**, on the format's own library ``mcap``: the file is read with
+  :class:`~strapdown_ros.bag.reader.McapScan` (``mcap``'s ``StreamReader`` and
+  ``breakup_chunk``, up to the last complete record; the complete messages of a chunk cut short
+  are salvaged when it is uncompressed — the one thing done by hand, because the library reads
+  a chunk only whole) and written again with ``mcap.writer.Writer`` into a temporary sibling,
+  renamed over the original when everything succeeded. The writer rebuilds what a killed
+  recording lacks: chunk CRCs, message indexes, the summary section (schemas, channels,
+  statistics, chunk/metadata/attachment indexes, summary offsets) and the footer. Kept as they
+  were: the Header's profile ``ros2`` (set if the file had another one: rosbag2 readers require
+  it) and, in the library field, the original writer's name; every schema and channel (with
+  its metadata: the offered QoS profiles rosbag2 stores); every message with its payload bytes,
+  log time, publish time and sequence number, in file order; metadata and attachment records.
+  The ``rosbag2`` metadata record (rosbag2 writes the bag's metadata into it, as YAML under
+  ``serialized_metadata``, when it closes a file) is written anew with the repaired bag's
+  metadata, its other keys kept. Chunks are written uncompressed.
 * **sqlite3**: the database is opened read-write, so SQLite rolls back an unfinished
   transaction from its journal (what the recorder had not committed, i.e. not flushed), checked
-  with ``PRAGMA integrity_check``, and the metadata table row is written.
+  with ``PRAGMA integrity_check``, and the ``metadata`` table row is written.
 
 Then ``metadata.yaml`` (version 9: topics with types, offered QoS profiles and type hashes,
 message counts, start time, duration, file list) is written from what the data file holds.
-The result opens with :func:`strapdown_ros.bag.reader.read_bag` and ``rosbags``' readers.
+``custom_data`` is kept from the bag's own records of it — an existing ``metadata.yaml``, the
+``rosbag2`` metadata record of an mcap file, the ``metadata`` table of an SQLite file — with
+``repaired_by`` added. (rosbag2 writers store these records only when they close a bag, so a
+recording killed before that has none.)
+The result opens with :func:`strapdown_ros.bag.reader.read_bag`, ``rosbags``' readers and
+``mcap.reader.make_reader``.
 """
 
 from __future__ import annotations
 
 import os
 import sqlite3
-import struct
-import zlib
-from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import yaml
+from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
-from strapdown_ros.bag.reader import BagReadError, check_bag, read_bag
+from strapdown_ros.bag.reader import BagReadError, McapScan, read_bag
 from strapdown_ros.bag.writer import TYPESTORE
 
-__all__ = ["BagRepairError", "RepairReport", "bag_info", "repair_bag"]
+__all__ = ["BagRepairError", "RepairReport", "repair_bag"]
 
-MAGIC = b"\x89MCAP0\r\n"
 _VERSION = 9
 _NO_MESSAGES_START = 2**63 - 1  # what rosbags writes as the start time of an empty bag
-
-# MCAP opcodes
-_HEADER, _FOOTER, _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-_MESSAGE_INDEX, _CHUNK_INDEX, _STATISTICS, _METADATA = 0x07, 0x08, 0x0B, 0x0C
-_SUMMARY_OFFSET, _DATA_END = 0x0E, 0x0F
-
-_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_CHUNK_SIZE = 1 << 20  # bytes of records per chunk, as rosbags writes them
+_PROFILE = "ros2"  # the MCAP profile of rosbag2 files
+_ROSBAG2 = "rosbag2"  # name of the metadata record in which rosbag2 stores the bag's metadata
 
 
 class BagRepairError(RuntimeError):
@@ -67,6 +76,7 @@ class RepairReport:
     repaired: bool = True  #: False: the bag was complete and was left as it was
     dropped_bytes: int = 0  #: bytes after the last complete record (mcap)
     salvaged: int = 0  #: messages kept from a chunk cut short (mcap)
+    custom_data: dict[str, str] = field(default_factory=dict)  #: as written to metadata.yaml
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -102,7 +112,7 @@ def repair_bag(path: str | os.PathLike[str], *, force: bool = False) -> RepairRe
     """Make an interrupted recording at ``path`` a complete, readable bag again.
 
     A bag that :func:`~strapdown_ros.bag.reader.read_bag` opens already is left untouched
-    (``repaired=False``) unless ``force``, which rebuilds its metadata anyway.
+    (``repaired=False``) unless ``force``, which rebuilds its data files and metadata anyway.
 
     Raises
     ------
@@ -126,55 +136,17 @@ def repair_bag(path: str | os.PathLike[str], *, force: bool = False) -> RepairRe
         if complete is not None:
             return complete
     report = RepairReport(path=path, storage=storage, files=[p.name for p in files])
+    found = _Found()
+    found.merge(_metadata_yaml(path))
     if storage == "mcap":
-        found = _repair_mcap_files(files, report)
+        _repair_mcap_files(files, found, report)
     else:
-        found = _repair_sqlite_files(files, report)
-    _write_metadata(path, storage, files, found, report)
+        _repair_sqlite_files(files, found, report)
+        info = _bag_metadata(storage, files, found)
+        for f in found.sqlite_metadata:
+            _store_sqlite_metadata(f, info)
+    _write_metadata_yaml(path, _bag_metadata(storage, files, found), found, report)
     return report
-
-
-def bag_info(path: str | os.PathLike[str]) -> str:
-    """Summary of a bag from its metadata: storage, files, start, duration, topics and counts.
-
-    Raises :class:`~strapdown_ros.bag.reader.BagReadError` when the bag is not readable (an
-    interrupted recording: the message says to run ``strapdown-sim bag repair``).
-    """
-    import datetime as _dt
-
-    info, files = check_bag(path)
-    count = int(info.get("message_count", 0))
-    start = int(info.get("starting_time", {}).get("nanoseconds_since_epoch", 0))
-    duration = int(info.get("duration", {}).get("nanoseconds", 0))
-    size = sum(f.stat().st_size for f in files)
-    when = "-"
-    if count:
-        sec, ns = divmod(start, 1_000_000_000)
-        stamp = _dt.datetime.fromtimestamp(sec, tz=_dt.UTC).strftime("%Y-%m-%dT%H:%M:%S")
-        when = f"{stamp}.{ns:09d}Z"
-    lines = [
-        f"bag:       {Path(path)}",
-        f"storage:   {info['storage_identifier']} (metadata version {info.get('version')}), "
-        f"{', '.join(f.name for f in files)}, {size / 2**20:.1f} MiB",
-        f"start:     {when}",
-        f"duration:  {duration * 1e-9:.3f} s",
-        f"messages:  {count}",
-    ]
-    custom = info.get("custom_data") or {}
-    if custom:
-        lines.append("custom:    " + ", ".join(f"{k}={v}" for k, v in custom.items()))
-    topics = info.get("topics_with_message_count") or []
-    width = max((len(t["topic_metadata"]["name"]) for t in topics), default=0)
-    lines.append(f"topics:    {len(topics)}")
-    for t in topics:
-        meta = t["topic_metadata"]
-        qos = meta.get("offered_qos_profiles") or []
-        rel = ",".join(sorted({str(q.get("reliability", "?")) for q in qos if isinstance(q, dict)}))
-        lines.append(
-            f"  {meta['name']:<{width}} {t['message_count']:>9}  {meta['type']}"
-            + (f"  [{rel}]" if rel else "")
-        )
-    return "\n".join(lines)
 
 
 def _complete_report(path: Path, storage: str, files: list[Path]) -> RepairReport | None:
@@ -190,7 +162,13 @@ def _complete_report(path: Path, storage: str, files: list[Path]) -> RepairRepor
     info = yaml.safe_load(meta.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
     if {Path(p).name for p in info["relative_file_paths"]} != listed:
         return None  # a data file is not listed in the metadata
-    report = RepairReport(path=path, storage=storage, files=sorted(listed), repaired=False)
+    report = RepairReport(
+        path=path,
+        storage=storage,
+        files=sorted(listed),
+        repaired=False,
+        custom_data=dict(contents.custom_data),
+    )
     for topic, data in contents.topics.items():
         report.topics[topic] = data.msgtype
         report.counts[topic] = len(data)
@@ -202,7 +180,7 @@ def _complete_report(path: Path, storage: str, files: list[Path]) -> RepairRepor
 
 
 # ---------------------------------------------------------------------------------------------
-# Topics found in a data file
+# What a bag's files hold
 
 
 @dataclass
@@ -226,12 +204,46 @@ class _Topic:
 
 @dataclass
 class _Found:
-    """What the data files of a bag hold."""
+    """What the data files (and a previous metadata.yaml) of a bag hold."""
 
     topics: dict[str, _Topic] = field(default_factory=dict)
-    custom_data: dict[str, str] | None = None
+    custom_data: dict[str, str] = field(default_factory=dict)
+    ros_distro: str | None = None
     #: SQLite files with a rosbag2 ``metadata`` table (filled in too)
     sqlite_metadata: list[Path] = field(default_factory=list)
+
+    def merge(self, info: dict | None) -> None:
+        """Take ``custom_data`` and ``ros_distro`` from a stored rosbag2 metadata mapping; the
+        first source merged wins for a key (metadata.yaml, then the data files' records)."""
+        if not isinstance(info, dict):
+            return
+        custom = info.get("custom_data")
+        if isinstance(custom, dict):
+            for key, value in custom.items():
+                self.custom_data.setdefault(str(key), str(value))
+        distro = info.get("ros_distro")
+        if self.ros_distro is None and isinstance(distro, str) and distro:
+            self.ros_distro = distro
+
+
+def _metadata_yaml(path: Path) -> dict | None:
+    """The ``rosbag2_bagfile_information`` of an existing metadata.yaml, if it loads."""
+    try:
+        doc = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        return doc["rosbag2_bagfile_information"]
+    except (OSError, yaml.YAMLError, TypeError, KeyError):
+        return None
+
+
+def _serialized_metadata(text: str) -> dict | None:
+    """The mapping rosbag2 serializes into its 'rosbag2' record / SQLite metadata table."""
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None
+    if isinstance(value, dict) and "rosbag2_bagfile_information" in value:
+        value = value["rosbag2_bagfile_information"]
+    return value if isinstance(value, dict) else None
 
 
 def _type_hash(msgtype: str, stored: str = "") -> str:
@@ -244,391 +256,169 @@ def _type_hash(msgtype: str, stored: str = "") -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# MCAP
-
-
-def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
-    (n,) = _U32.unpack_from(buf, pos)
-    end = pos + 4 + n
-    if end > len(buf):
-        raise ValueError("string beyond its record")
-    return bytes(buf[pos + 4 : end]).decode("utf-8"), end
-
-
-def _put_string(text: str) -> bytes:
-    data = text.encode("utf-8")
-    return _U32.pack(len(data)) + data
-
-
-def _record(op: int, content: bytes) -> bytes:
-    return bytes([op]) + _U64.pack(len(content)) + content
+# MCAP, on the mcap library
 
 
 @dataclass
-class _Schema:
-    id: int
-    name: str
-    encoding: str
-    data: bytes
+class _McapOut:
+    """One MCAP file being rewritten: the writer stays open until the bag's metadata is known
+    (it goes into the file's 'rosbag2' metadata record)."""
 
+    src: Path
+    tmp: Path
+    fh: BinaryIO
+    writer: Writer
+    rosbag2: dict[str, str] = field(default_factory=dict)  #: the original record's entries
 
-@dataclass
-class _Channel:
-    id: int
-    schema_id: int
-    topic: str
-    message_encoding: str
-    metadata: dict[str, str]
-
-
-def _parse_schema(rec: memoryview) -> _Schema:
-    (sid,) = _U16.unpack_from(rec, 0)
-    name, pos = _string(rec, 2)
-    encoding, pos = _string(rec, pos)
-    (n,) = _U32.unpack_from(rec, pos)
-    return _Schema(sid, name, encoding, bytes(rec[pos + 4 : pos + 4 + n]))
-
-
-def _parse_channel(rec: memoryview) -> _Channel:
-    cid, sid = struct.unpack_from("<HH", rec, 0)
-    topic, pos = _string(rec, 4)
-    encoding, pos = _string(rec, pos)
-    (n,) = _U32.unpack_from(rec, pos)
-    pos += 4
-    end = pos + n
-    meta: dict[str, str] = {}
-    while pos < end:
-        key, pos = _string(rec, pos)
-        value, pos = _string(rec, pos)
-        meta[key] = value
-    return _Channel(cid, sid, topic, encoding, meta)
-
-
-@dataclass
-class _Chunk:
-    """Uncompressed records of one output chunk and the messages in it."""
-
-    records: bytearray = field(default_factory=bytearray)
-    #: (channel id, log time, offset of the record in ``records``)
-    messages: list[tuple[int, int, int]] = field(default_factory=list)
-
-
-class _McapScan:
-    """Everything kept from one MCAP file, in file order."""
-
-    def __init__(self) -> None:
-        self.header: bytes = _record(_HEADER, _put_string("ros2") + _put_string("strapdown_ros"))
-        self.schemas: dict[int, _Schema] = {}
-        self.channels: dict[int, _Channel] = {}
-        #: ("raw", record bytes) for top-level schema/channel records, ("chunk", _Chunk)
-        self.items: list[tuple[str, object]] = []
-        self.good_end = len(MAGIC)
-        self.salvaged = 0
-        self.notes: list[str] = []
-        self.custom_data: dict[str, str] | None = None
-
-    def inner(self, records: memoryview, chunk: _Chunk, partial: bool) -> None:
-        """Keep the schema/channel/message records of a chunk's (uncompressed) records."""
-        pos, size = 0, len(records)
-        while pos + 9 <= size:
-            op = records[pos]
-            (length,) = _U64.unpack_from(records, pos + 1)
-            end = pos + 9 + length
-            if end > size:
-                break
-            rec = records[pos + 9 : end]
-            if op == _MESSAGE:
-                if length < 22:
-                    raise ValueError(f"message record of {length} bytes")
-                cid, _, log_time = struct.unpack_from("<HIQ", rec, 0)
-                chunk.messages.append((cid, log_time, len(chunk.records)))
-                chunk.records += records[pos:end]
-                self.salvaged += partial
-            elif op in (_SCHEMA, _CHANNEL):
-                self.top_level(op, rec)
-                chunk.records += records[pos:end]
-            pos = end
-
-    def top_level(self, op: int, rec: memoryview) -> None:
-        if op == _SCHEMA:
-            s = _parse_schema(rec)
-            self.schemas[s.id] = s
-        else:
-            c = _parse_channel(rec)
-            self.channels[c.id] = c
-
-
-def _decompress(data: memoryview, compression: str, size: int) -> bytes:
-    if compression == "":
-        return bytes(data)
-    if compression == "zstd":
-        try:
-            from compression import zstd  # type: ignore[import-not-found]
-        except ImportError:
-            from backports import zstd  # type: ignore[no-redef]
-        return zstd.decompress(bytes(data))
-    if compression == "lz4":
-        from lz4.frame import decompress  # type: ignore[import-untyped]
-
-        return decompress(bytes(data))
-    raise ValueError(f"unsupported chunk compression {compression!r}")
-
-
-def _scan_mcap(data: memoryview, name: str) -> _McapScan:
-    """Parse an MCAP file up to its last complete record (or its data end)."""
-    scan = _McapScan()
-    if bytes(data[: len(MAGIC)]) != MAGIC:
-        raise BagRepairError(f"{name} is not an MCAP file (no MCAP magic at its start)")
-    pos, size = len(MAGIC), len(data)
-    n_chunk = 0
-    while pos + 9 <= size:
-        op = data[pos]
-        (length,) = _U64.unpack_from(data, pos + 1)
-        end = pos + 9 + length
-        rec = data[pos + 9 : min(end, size)]
-        if end > size:  # cut short: salvage an uncompressed chunk's complete messages
-            if op == _CHUNK:
-                _salvage_chunk(scan, rec, n_chunk)
-            break
-        try:
-            if op == _HEADER:
-                profile, _ = _string(rec, 0)
-                if profile != "ros2":
-                    scan.notes.append(f"MCAP profile {profile!r} (rosbag2 writes 'ros2')")
-                scan.header = bytes(data[pos:end])
-            elif op in (_SCHEMA, _CHANNEL):
-                scan.top_level(op, rec)
-                scan.items.append(("raw", bytes(data[pos:end])))
-            elif op == _MESSAGE:
-                cid, _, log_time = struct.unpack_from("<HIQ", rec, 0)
-                chunk = _Chunk()
-                chunk.messages.append((cid, log_time, 0))
-                chunk.records += data[pos:end]
-                scan.items.append(("chunk", chunk))
-            elif op == _CHUNK:
-                n_chunk += 1
-                _, _, usize, crc = struct.unpack_from("<QQQI", rec, 0)
-                compression, p = _string(rec, 28)
-                (csize,) = _U64.unpack_from(rec, p)
-                if p + 8 + csize > len(rec):
-                    raise ValueError("chunk data beyond its record")
-                raw = _decompress(rec[p + 8 : p + 8 + csize], compression, usize)
-                if len(raw) != usize or (crc and zlib.crc32(raw) != crc):
-                    raise ValueError("chunk size or CRC mismatch")
-                chunk = _Chunk()
-                scan.inner(memoryview(raw), chunk, partial=False)
-                scan.items.append(("chunk", chunk))
-            elif op == _METADATA:
-                scan.custom_data = _rosbag2_custom_data(rec) or scan.custom_data
-            elif op in (_DATA_END, _FOOTER):  # a complete file: its summary is rebuilt
-                scan.good_end = size
-                return scan
-            # message indexes, chunk indexes, statistics, attachments: rebuilt or dropped
-        except (ValueError, struct.error, UnicodeDecodeError) as exc:
-            scan.notes.append(f"skipped a corrupt record (opcode 0x{op:02x}) at byte {pos}: {exc}")
-        pos = end
-        scan.good_end = pos
-    return scan
-
-
-def _salvage_chunk(scan: _McapScan, rec: memoryview, n_chunk: int) -> None:
-    """Keep the complete records of a chunk cut short (uncompressed chunks only)."""
-    try:
-        compression, p = _string(rec, 28)
-    except (ValueError, struct.error, UnicodeDecodeError):
-        return
-    if compression != "" or p + 8 > len(rec):
-        scan.notes.append(f"chunk {n_chunk + 1} is cut short and compressed: its messages are lost")
-        return
-    chunk = _Chunk()
-    scan.inner(rec[p + 8 :], chunk, partial=True)
-    if chunk.records:
-        scan.items.append(("chunk", chunk))
-
-
-def _rosbag2_custom_data(rec: memoryview) -> dict[str, str] | None:
-    """custom_data of the 'rosbag2' metadata record that rosbags writes when it closes a bag."""
-    try:
-        name, pos = _string(rec, 0)
-        if name != "rosbag2":
-            return None
-        pos += 4
-        key, pos = _string(rec, pos)
-        value, _ = _string(rec, pos)
-        if key != "serialized_metadata":
-            return None
-        data = yaml.safe_load(value) or {}
-        custom = data.get("custom_data") or None
-        return {str(k): str(v) for k, v in custom.items()} if custom else None
-    except Exception:  # noqa: BLE001 - optional information
-        return None
-
-
-def _write_mcap(scan: _McapScan, out) -> tuple[dict[int, int], int, int]:
-    """Write the kept records as a complete MCAP file; returns counts per channel, start, end."""
-    pos = 0
-
-    def put(b: bytes) -> None:
-        nonlocal pos
-        out.write(b)
-        pos += len(b)
-
-    put(MAGIC)
-    put(scan.header)
-    chunk_indexes: list[bytes] = []
-    counts: dict[int, int] = defaultdict(int)
-    start, end = _NO_MESSAGES_START, 0
-    for kind, item in scan.items:
-        if kind == "raw":
-            put(item)  # type: ignore[arg-type]
-            continue
-        chunk: _Chunk = item  # type: ignore[assignment]
-        times = [t for _, t, _ in chunk.messages]
-        c_start, c_end = (min(times), max(times)) if times else (0, 0)
-        records = bytes(chunk.records)
-        content = (
-            struct.pack("<QQQI", c_start, c_end, len(records), zlib.crc32(records))
-            + _put_string("")
-            + _U64.pack(len(records))
-            + records
+    def finish(self, serialized_metadata: str) -> None:
+        self.writer.add_metadata(
+            _ROSBAG2, {**self.rosbag2, "serialized_metadata": serialized_metadata}
         )
-        chunk_start = pos
-        put(_record(_CHUNK, content))
-        chunk_length = pos - chunk_start
-        by_channel: dict[int, list[tuple[int, int]]] = defaultdict(list)
-        for cid, t, offset in chunk.messages:
-            by_channel[cid].append((t, offset))
-            counts[cid] += 1
-        index_offsets = []
-        index_start = pos
-        for cid, entries in by_channel.items():
-            index_offsets.append((cid, pos))
-            body = b"".join(struct.pack("<QQ", t, o) for t, o in entries)
-            put(_record(_MESSAGE_INDEX, struct.pack("<HI", cid, len(body)) + body))
-        if times:
-            start, end = min(start, c_start), max(end, c_end)
-        offsets = b"".join(struct.pack("<HQ", cid, o) for cid, o in index_offsets)
-        chunk_indexes.append(
-            struct.pack("<QQQQ", c_start, c_end, chunk_start, chunk_length)
-            + _U32.pack(len(offsets))
-            + offsets
-            + _U64.pack(pos - index_start)
-            + _put_string("")
-            + struct.pack("<QQ", len(records), len(records))
-        )
-    put(_record(_DATA_END, _U32.pack(0)))
+        self.writer.finish()
+        self.fh.flush()
+        os.fsync(self.fh.fileno())
+        self.fh.close()
 
-    summary_start = pos
-    groups: list[tuple[int, int, int]] = []
-
-    def group(op: int, records: list[bytes]) -> None:
-        if not records:
-            return
-        begin = pos
-        for r in records:
-            put(_record(op, r))
-        groups.append((op, begin, pos - begin))
-
-    group(_SCHEMA, [_schema_record(s) for s in scan.schemas.values()])
-    group(_CHANNEL, [_channel_record(c) for c in scan.channels.values()])
-    group(_CHUNK_INDEX, chunk_indexes)
-    stats = b"".join(struct.pack("<HQ", cid, n) for cid, n in sorted(counts.items()))
-    total = sum(counts.values())
-    group(
-        _STATISTICS,
-        [
-            struct.pack(
-                "<QHIIIIQQ",
-                total,
-                len(scan.schemas),
-                len(scan.channels),
-                0,
-                0,
-                len(chunk_indexes),
-                start if total else 0,
-                end,
-            )
-            + _U32.pack(len(stats))
-            + stats
-        ],
-    )
-    offsets_start = pos
-    for op, begin, length in groups:
-        put(_record(_SUMMARY_OFFSET, struct.pack("<BQQ", op, begin, length)))
-    put(_record(_FOOTER, struct.pack("<QQI", summary_start, offsets_start, 0)))
-    put(MAGIC)
-    return dict(counts), start, end
+    def discard(self) -> None:
+        self.fh.close()
+        self.tmp.unlink(missing_ok=True)
 
 
-def _schema_record(s: _Schema) -> bytes:
-    return (
-        _U16.pack(s.id) + _put_string(s.name) + _put_string(s.encoding)
-        + _U32.pack(len(s.data)) + s.data
-    )  # fmt: skip
+def _repair_mcap_files(files: list[Path], found: _Found, report: RepairReport) -> None:
+    outs: list[_McapOut] = []
+    try:
+        for f in files:
+            outs.append(_rewrite_mcap(f, found, report))
+        text = yaml.safe_dump(
+            _bag_metadata("mcap", files, found), default_flow_style=False, sort_keys=False
+        ).strip()
+        for out in outs:
+            out.finish(text)
+        for out in outs:
+            os.replace(out.tmp, out.src)
+    finally:
+        for out in outs:
+            out.discard()
 
 
-def _channel_record(c: _Channel) -> bytes:
-    meta = b"".join(_put_string(k) + _put_string(v) for k, v in c.metadata.items())
-    return (
-        struct.pack("<HH", c.id, c.schema_id) + _put_string(c.topic)
-        + _put_string(c.message_encoding) + _U32.pack(len(meta)) + meta
-    )  # fmt: skip
+def _rewrite_mcap(f: Path, found: _Found, report: RepairReport) -> _McapOut:
+    """Copy the complete records of ``f`` into an open ``mcap`` Writer on a temporary file."""
+    try:
+        scan = McapScan(f)
+    except BagReadError as exc:
+        raise BagRepairError(str(exc)) from None
+    tmp = f.with_name(f".{f.name}.repair-tmp")
+    fh = tmp.open("wb")
+    out = _McapOut(f, tmp, fh, Writer(fh, chunk_size=_CHUNK_SIZE, compression=CompressionType.NONE))
+    try:
+        _copy_records(scan, out, found, report)
+    except BaseException:
+        out.discard()
+        raise
+    report.dropped_bytes += scan.dropped
+    report.salvaged += scan.salvaged
+    report.notes += [f"{f.name}: {n}" for n in scan.notes]
+    record = _serialized_metadata(out.rosbag2.get("serialized_metadata", ""))
+    found.merge(record)
+    return out
 
 
-def _repair_mcap_files(files: list[Path], report: RepairReport) -> _Found:
-    found = _Found()
-    topics = found.topics
-    for f in files:
-        data = f.read_bytes()
-        scan = _scan_mcap(memoryview(data), f.name)
-        report.dropped_bytes += len(data) - scan.good_end if scan.good_end < len(data) else 0
-        report.salvaged += scan.salvaged
-        report.notes += [f"{f.name}: {n}" for n in scan.notes]
-        tmp = f.with_name(f".{f.name}.repair-tmp")
-        try:
-            with tmp.open("wb") as out:
-                counts, _, _ = _write_mcap(scan, out)
-                out.flush()
-                os.fsync(out.fileno())
-            os.replace(tmp, f)
-        finally:
-            tmp.unlink(missing_ok=True)
-        # per-topic counts and times, in channel id order
-        times: dict[int, list[int]] = defaultdict(list)
-        for kind, item in scan.items:
-            if kind == "chunk":
-                for cid, t, _ in item.messages:  # type: ignore[attr-defined]
-                    times[cid].append(t)
-        for cid in sorted(scan.channels):
-            ch = scan.channels[cid]
-            schema = scan.schemas.get(ch.schema_id)
-            if schema is None:
-                report.notes.append(f"{f.name}: channel {ch.topic} has no schema; skipped")
-                continue
-            topic = topics.get(ch.topic)
-            if topic is None:
-                topic = topics[ch.topic] = _Topic(
-                    ch.topic,
-                    schema.name,
-                    ch.message_encoding,
-                    ch.metadata.get("offered_qos_profiles", ""),
-                    _type_hash(schema.name, ch.metadata.get("topic_type_hash", "")),
+def _copy_records(scan: McapScan, out: _McapOut, found: _Found, report: RepairReport) -> None:
+    writer, name = out.writer, scan.path.name
+    schemas: dict[int, tuple[Schema, int]] = {}  # id in the file -> (record, id in the output)
+    channels: dict[int, tuple[int, _Topic | None]] = {}  # id in the file -> (output id, topic)
+    orphans = 0
+    started = False
+
+    def start(library: str) -> None:
+        nonlocal started
+        tag = f"strapdown-sim bag repair ({LIBRARY_IDENTIFIER})"
+        writer.start(_PROFILE, f"{library}; {tag}" if library else tag)
+        started = True
+
+    for rec in scan.records():
+        if isinstance(rec, Header):
+            if rec.profile != _PROFILE:
+                report.notes.append(
+                    f"{name}: MCAP profile {rec.profile!r} written as {_PROFILE!r} (rosbag2's)"
                 )
-            for t in times.get(cid, []):
-                topic.add(t)
-        unknown = set(counts) - set(scan.channels)
-        if unknown:
-            report.notes.append(f"{f.name}: messages of unknown channel ids {sorted(unknown)}")
-        found.custom_data = scan.custom_data or found.custom_data
-    return found
+            start(rec.library)
+            continue
+        if not started:  # the file was cut inside its header
+            start("")
+        if isinstance(rec, Message):
+            entry = channels.get(rec.channel_id)
+            if entry is None:
+                orphans += 1
+                continue
+            writer.add_message(entry[0], rec.log_time, rec.data, rec.publish_time, rec.sequence)
+            if entry[1] is not None:
+                entry[1].add(rec.log_time)
+        elif isinstance(rec, Schema):
+            if rec.id in schemas:  # repeated (e.g. in every chunk): one is enough
+                if schemas[rec.id][0] != rec:
+                    report.notes.append(f"{name}: schema id {rec.id} redefined; first kept")
+                continue
+            schemas[rec.id] = (rec, writer.register_schema(rec.name, rec.encoding, rec.data))
+        elif isinstance(rec, Channel):
+            if rec.id in channels:
+                continue
+            if rec.schema_id and rec.schema_id not in schemas:
+                report.notes.append(
+                    f"{name}: channel {rec.topic} refers to the unknown schema id "
+                    f"{rec.schema_id}; its messages are dropped"
+                )
+                continue
+            schema = schemas[rec.schema_id] if rec.schema_id else None
+            cid = writer.register_channel(
+                rec.topic, rec.message_encoding, schema[1] if schema else 0, dict(rec.metadata)
+            )
+            channels[rec.id] = (cid, _topic(found, rec, schema[0] if schema else None, report))
+        elif isinstance(rec, Metadata):
+            if rec.name == _ROSBAG2:  # written anew with the repaired metadata
+                out.rosbag2 = dict(rec.metadata)
+            else:
+                writer.add_metadata(rec.name, dict(rec.metadata))
+        elif isinstance(rec, Attachment):
+            writer.add_attachment(rec.create_time, rec.log_time, rec.name, rec.media_type, rec.data)
+    if not started:
+        start("")
+    if orphans:
+        report.notes.append(f"{name}: dropped {orphans} messages of channels never defined")
+
+
+def _topic(
+    found: _Found, ch: Channel, schema: Schema | None, report: RepairReport
+) -> _Topic | None:
+    """The metadata.yaml topic a channel's messages count for (None: left out, noted)."""
+    if schema is None:
+        report.notes.append(
+            f"channel {ch.topic} has no schema (type unknown): its messages stay in the file "
+            "but the topic is left out of metadata.yaml"
+        )
+        return None
+    topic = found.topics.get(ch.topic)
+    if topic is None:
+        topic = found.topics[ch.topic] = _Topic(
+            ch.topic,
+            schema.name,
+            ch.message_encoding,
+            ch.metadata.get("offered_qos_profiles", ""),
+            _type_hash(schema.name, ch.metadata.get("topic_type_hash", "")),
+        )
+    elif topic.msgtype != schema.name:
+        report.notes.append(
+            f"topic {ch.topic} has channels of types {topic.msgtype} and {schema.name}; "
+            f"metadata.yaml lists it as {topic.msgtype}"
+        )
+    return topic
 
 
 # ---------------------------------------------------------------------------------------------
 # SQLite
 
 
-def _repair_sqlite_files(files: list[Path], report: RepairReport) -> _Found:
-    found = _Found()
+def _repair_sqlite_files(files: list[Path], found: _Found, report: RepairReport) -> None:
     topics = found.topics
     for f in files:
         with f.open("rb") as fh:
@@ -666,6 +456,9 @@ def _repair_sqlite_files(files: list[Path], report: RepairReport) -> _Found:
             has_meta = con.execute(
                 "SELECT count(*) FROM sqlite_master WHERE type='table' AND name='metadata'"
             ).fetchone()[0]
+            if has_meta:  # rosbag2 stores the bag's metadata there when it closes the file
+                for (text,) in con.execute("SELECT metadata FROM metadata ORDER BY id DESC"):
+                    found.merge(_serialized_metadata(text or ""))
             con.commit()
         except sqlite3.Error as exc:
             con.close()
@@ -673,22 +466,33 @@ def _repair_sqlite_files(files: list[Path], report: RepairReport) -> _Found:
         con.close()
         if has_meta:
             found.sqlite_metadata.append(f)
-    return found
+
+
+def _store_sqlite_metadata(f: Path, info: dict) -> None:
+    con = sqlite3.connect(f"file:{f}", uri=True)
+    try:
+        text = yaml.safe_dump(info, default_flow_style=False)
+        con.execute("DELETE FROM metadata")
+        con.execute(
+            "INSERT INTO metadata(metadata_version, metadata) VALUES(?, ?)", (_VERSION, text)
+        )
+        con.commit()
+    finally:
+        con.close()
 
 
 # ---------------------------------------------------------------------------------------------
 # metadata.yaml
 
 
-def _write_metadata(
-    path: Path, storage: str, files: list[Path], found: _Found, report: RepairReport
-) -> None:
+def _bag_metadata(storage: str, files: list[Path], found: _Found) -> dict:
+    """The ``rosbag2_bagfile_information`` mapping of the repaired bag."""
     topics = found.topics
     count = sum(t.count for t in topics.values())
     start = min((t.start_ns for t in topics.values() if t.count), default=_NO_MESSAGES_START)
     end = max((t.end_ns for t in topics.values() if t.count), default=0)
     duration = end - start if count else 0
-    custom = dict(found.custom_data or {"generator": "strapdown_ros"})
+    custom = dict(found.custom_data)
     custom["repaired_by"] = "strapdown-sim bag repair"
     info = {
         "version": _VERSION,
@@ -717,26 +521,34 @@ def _write_metadata(
                 "path": f.name,
                 "starting_time": {"nanoseconds_since_epoch": start},
                 "duration": {"nanoseconds": duration},
-                "message_count": count,
+                # per-file figures would need counting per file; totals are per bag
+                "message_count": count if len(files) == 1 else 0,
             }
             for f in files
         ],
         "custom_data": custom,
-        "ros_distro": "rosbags",
+        "ros_distro": found.ros_distro or "rosbags",
     }
-    if len(files) > 1:  # per-file figures would need a scan per file; totals are per bag
-        for entry in info["files"]:  # type: ignore[union-attr]
-            entry["message_count"] = 0
-    for f in found.sqlite_metadata:
-        _store_sqlite_metadata(f, info)
+    return info
+
+
+def _write_metadata_yaml(path: Path, info: dict, found: _Found, report: RepairReport) -> None:
     text = yaml.safe_dump({"rosbag2_bagfile_information": info}, default_flow_style=False)
     tmp = path / "metadata.yaml.tmp"
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path / "metadata.yaml")
+    topics = found.topics
+    count = info["message_count"]
     report.topics = {t.name: t.msgtype for t in topics.values()}
     report.counts = {t.name: t.count for t in topics.values()}
-    report.start_ns = start if count else None
-    report.end_ns = end if count else None
+    report.start_ns = info["starting_time"]["nanoseconds_since_epoch"] if count else None
+    report.end_ns = report.start_ns + info["duration"]["nanoseconds"] if count else None
+    report.custom_data = dict(info["custom_data"])
+    if set(report.custom_data) == {"repaired_by"}:
+        report.notes.append(
+            "no custom_data found (rosbag2 writers store it when they close a bag; a recording "
+            "killed before that has none)"
+        )
 
 
 def _qos_list(text: str) -> list:
@@ -748,16 +560,3 @@ def _qos_list(text: str) -> list:
     except yaml.YAMLError:
         return []
     return value if isinstance(value, list) else []
-
-
-def _store_sqlite_metadata(f: Path, info: dict) -> None:
-    con = sqlite3.connect(f"file:{f}", uri=True)
-    try:
-        text = yaml.safe_dump(info, default_flow_style=False)
-        con.execute("DELETE FROM metadata")
-        con.execute(
-            "INSERT INTO metadata(metadata_version, metadata) VALUES(?, ?)", (_VERSION, text)
-        )
-        con.commit()
-    finally:
-        con.close()

@@ -1,24 +1,39 @@
-"""Scenario files (SPEC §5): load, apply overrides, validate before any work starts.
+"""The scenario model (top level): rates, times, initial state, sections, recording.
 
-A scenario is one YAML file describing a whole run; the offline command and the ROS nodes read
-the same file. Every key is checked here: an unknown key, a wrong type, a NaN, an impossible
-value is rejected with a :class:`ScenarioError` whose message starts with the dotted key, e.g.
-``trajectory.segments[2].duration_s: must be > 0, got -1``. The schema is documented in
-``docs/scenarios.md``.
+One YAML file describes a whole run; ``generate``, ``validate`` and the ROS nodes read it with
+:func:`load_scenario`, which returns a validated, frozen :class:`Scenario`. Every check that can
+fail before anything is computed lives in the model (field limits here and in the section
+models, cross-field rules in :meth:`Scenario._cross_checks`), so every command accepts and
+rejects the same files with the same message ``<dotted key>: <problem>``. Keys:
+docs/scenarios.md.
 """
 
 from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import yaml
+from pydantic import Field, PrivateAttr, field_validator, model_validator
+
+from strapdown_ros.config.base import (
+    Finite,
+    Model,
+    NonNegative,
+    Positive,
+    ScenarioError,
+    StrictBool,
+    StrictInt,
+    Vector3,
+    validate_section,
+)
 
 __all__ = [
+    "DEFAULT_FRAMES",
+    "DEFAULT_TOPICS",
     "Initial",
     "Recording",
     "Scenario",
@@ -29,34 +44,9 @@ __all__ = [
 ]
 
 GRAVITY_MODELS = ("j2", "spherical")
-TRAJECTORY_KINDS = ("segments", "samples", "increments", "coning")
 STORAGES = ("mcap", "sqlite3")
 
-TOP_LEVEL_KEYS = (
-    "name",
-    "description",
-    "rate_hz",
-    "oversample",
-    "duration_s",
-    "start_time_s",
-    "gravity_model",
-    "initial",
-    "trajectory",
-    "variation",
-    "navigator",
-    "imu_errors",
-    "recording",
-)
-INITIAL_KEYS = (
-    "latitude_deg",
-    "longitude_deg",
-    "altitude_m",
-    "velocity_ned_mps",
-    "attitude_rph_deg",
-)
-RECORDING_KEYS = ("storage", "topics", "clock", "frames")
-
-#: Default topic names of SPEC §4, by stream key.
+#: Default topic names (docs/interface.md), by stream key.
 DEFAULT_TOPICS: dict[str, str] = {
     "reference_imu": "/reference/imu",
     "reference_odom": "/reference/odom",
@@ -75,7 +65,7 @@ DEFAULT_TOPICS: dict[str, str] = {
     "clock": "/clock",
 }
 
-#: Default frame ids of SPEC §4.
+#: Default frame ids.
 DEFAULT_FRAMES: dict[str, str] = {
     "earth": "earth",
     "reference_imu": "reference_imu",
@@ -83,217 +73,101 @@ DEFAULT_FRAMES: dict[str, str] = {
 }
 
 
-class ScenarioError(ValueError):
-    """A scenario file or override is invalid; ``key`` is the dotted path of the culprit."""
+class Initial(Model):
+    """Initial state: geodetic position (WGS-84, ellipsoidal altitude), NED velocity (m/s),
+    roll/pitch/heading of the body FRD axes w.r.t. NED (deg)."""
 
-    def __init__(self, key: str, problem: str) -> None:
-        self.key = key
-        self.problem = problem
-        super().__init__(f"{key}: {problem}" if key else problem)
+    latitude_deg: Annotated[Finite, Field(ge=-90.0, le=90.0)]
+    longitude_deg: Annotated[Finite, Field(ge=-180.0, le=360.0)]
+    altitude_m: Annotated[Finite, Field(ge=-10_000.0, le=1_000_000.0)] = 0.0
+    velocity_ned_mps: Vector3 = (0.0, 0.0, 0.0)
+    attitude_rph_deg: Vector3 = (0.0, 0.0, 0.0)
+
+    @field_validator("attitude_rph_deg")
+    @classmethod
+    def _pitch(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
+        if abs(value[1]) >= 90.0:
+            raise ScenarioError("[1]", f"pitch must be within ±90°, got {value[1]}")
+        return value
 
 
-# ---------------------------------------------------------------------------------------------
-# Small typed readers: each names the key in its error.
-
-
-def _join(path: str, key: str | int) -> str:
-    if isinstance(key, int):
-        return f"{path}[{key}]"
-    return f"{path}.{key}" if path else key
-
-
-def check_mapping(value: Any, path: str, allowed: Iterable[str]) -> dict[str, Any]:
-    """Return ``value`` as a dict after checking it is a mapping with only ``allowed`` keys."""
+def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]:
     if value is None:
         value = {}
     if not isinstance(value, Mapping):
-        raise ScenarioError(path, f"must be a mapping, got {type(value).__name__}")
-    allowed = tuple(allowed)
-    for key in value:
-        if not isinstance(key, str):
-            raise ScenarioError(path, f"keys must be strings, got {key!r}")
-        if key not in allowed:
-            raise ScenarioError(
-                _join(path, key), f"unknown key; expected one of: {', '.join(allowed)}"
-            )
-    return dict(value)
-
-
-def read_number(
-    data: Mapping[str, Any],
-    key: str,
-    path: str,
-    *,
-    default: float | None = None,
-    required: bool = False,
-    minimum: float | None = None,
-    maximum: float | None = None,
-    exclusive_minimum: float | None = None,
-) -> float | None:
-    """A finite real number at ``data[key]``, with range checks; errors name the key."""
-    full = _join(path, key)
-    if key not in data or data[key] is None:
-        if required:
-            raise ScenarioError(full, "is required")
-        return default
-    value = data[key]
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(full, f"must be a number, got {type(value).__name__} {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ScenarioError(full, f"must be finite, got {value}")
-    if minimum is not None and value < minimum:
-        raise ScenarioError(full, f"must be >= {minimum}, got {value}")
-    if maximum is not None and value > maximum:
-        raise ScenarioError(full, f"must be <= {maximum}, got {value}")
-    if exclusive_minimum is not None and value <= exclusive_minimum:
-        raise ScenarioError(full, f"must be > {exclusive_minimum}, got {value}")
-    return value
-
-
-def read_int(
-    data: Mapping[str, Any],
-    key: str,
-    path: str,
-    *,
-    default: int | None = None,
-    minimum: int | None = None,
-) -> int | None:
-    """An integer at ``data[key]`` (a float with an integral value is accepted)."""
-    full = _join(path, key)
-    if key not in data or data[key] is None:
-        return default
-    value = data[key]
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(full, f"must be an integer, got {type(value).__name__} {value!r}")
-    if isinstance(value, float) and (not math.isfinite(value) or value != int(value)):
-        raise ScenarioError(full, f"must be an integer, got {value}")
-    value = int(value)
-    if minimum is not None and value < minimum:
-        raise ScenarioError(full, f"must be >= {minimum}, got {value}")
-    return value
-
-
-def read_vector(
-    data: Mapping[str, Any],
-    key: str,
-    path: str,
-    *,
-    length: int = 3,
-    default: Sequence | None = None,
-) -> list[float] | None:
-    """A list of ``length`` finite numbers at ``data[key]``."""
-    full = _join(path, key)
-    if key not in data or data[key] is None:
-        return None if default is None else [float(x) for x in default]
-    value = data[key]
-    if not isinstance(value, list | tuple) or len(value) != length:
-        raise ScenarioError(full, f"must be a list of {length} numbers, got {value!r}")
-    out = []
-    for i, item in enumerate(value):
-        if isinstance(item, bool) or not isinstance(item, int | float):
-            raise ScenarioError(f"{full}[{i}]", f"must be a number, got {item!r}")
-        if not math.isfinite(float(item)):
-            raise ScenarioError(f"{full}[{i}]", f"must be finite, got {item}")
-        out.append(float(item))
+        raise ValueError(f"must be a mapping, got {type(value).__name__}")
+    out = dict(defaults)
+    for key, name in value.items():
+        if key not in defaults:
+            raise ScenarioError(str(key), "unknown key; expected one of: " + ", ".join(defaults))
+        if what == "topic" and (not isinstance(name, str) or not name.startswith("/")
+                                or " " in name):  # fmt: skip
+            raise ScenarioError(str(key), f"must be an absolute topic name, got {name!r}")
+        if what == "frame" and (not isinstance(name, str) or not name or " " in name):
+            raise ScenarioError(str(key), f"must be a frame id, got {name!r}")
+        out[str(key)] = name
     return out
 
 
-def read_choice(
-    data: Mapping[str, Any], key: str, path: str, choices: Sequence[str], default: str | None
-) -> str | None:
-    """One of ``choices`` at ``data[key]``."""
-    full = _join(path, key)
-    if key not in data or data[key] is None:
-        if default is None:
-            raise ScenarioError(full, f"is required; one of: {', '.join(choices)}")
-        return default
-    value = data[key]
-    if value not in choices:
-        raise ScenarioError(full, f"must be one of: {', '.join(choices)}; got {value!r}")
-    return str(value)
+class Recording(Model):
+    """Bag output: storage plugin, topic names and frame ids by stream key, ``/clock``."""
+
+    storage: Literal["mcap", "sqlite3"] = "mcap"
+    topics: dict[str, str] = Field(default_factory=lambda: dict(DEFAULT_TOPICS))
+    frames: dict[str, str] = Field(default_factory=lambda: dict(DEFAULT_FRAMES))
+    clock: StrictBool = False
+
+    @field_validator("topics", mode="before")
+    @classmethod
+    def _topics(cls, value: Any) -> dict[str, str]:
+        return _names(value, DEFAULT_TOPICS, "topic")
+
+    @field_validator("frames", mode="before")
+    @classmethod
+    def _frames(cls, value: Any) -> dict[str, str]:
+        return _names(value, DEFAULT_FRAMES, "frame")
 
 
-def read_bool(data: Mapping[str, Any], key: str, path: str, default: bool) -> bool:
-    """A boolean at ``data[key]``."""
-    if key not in data or data[key] is None:
-        return default
-    value = data[key]
-    if not isinstance(value, bool):
-        raise ScenarioError(_join(path, key), f"must be true or false, got {value!r}")
-    return value
+def _is_integer_ns(value: float) -> bool:
+    return abs(value - round(value)) <= 1e-6 * max(1.0, abs(value)) * 1e-3
 
 
-def _check_finite_tree(value: Any, path: str) -> None:
-    """Reject NaN/inf anywhere in the document, naming the key (YAML accepts .nan)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        raise ScenarioError(path, f"must be finite, got {value}")
-    if isinstance(value, Mapping):
-        for k, v in value.items():
-            _check_finite_tree(v, _join(path, str(k)))
-    elif isinstance(value, list | tuple):
-        for i, v in enumerate(value):
-            _check_finite_tree(v, _join(path, i))
+class Scenario(Model):
+    """A validated scenario (frozen). ``path`` is the file it was read from (if any)."""
 
+    name: str = "scenario"  # default: the file's stem
+    description: str | None = None
+    rate_hz: Annotated[Positive, Field(le=1e6)]
+    oversample: Annotated[StrictInt, Field(ge=1)] = 1
+    duration_s: Positive | None = None
+    start_time_s: Annotated[NonNegative, Field(le=4.0e9)] = 0.0
+    gravity_model: Literal["j2", "spherical"] = "j2"
+    initial: Initial | None = None
+    # -- sections (each its own model; see config/<section>.py) --------------------------------
+    trajectory: dict[str, Any]  # SECTION trajectory
+    variation: dict[str, Any] | None = None  # SECTION variation
+    navigator: dict[str, Any] | None = None  # SECTION navigator
+    imu_errors: dict[str, Any] | None = None  # SECTION imu_errors
+    recording: Recording = Field(default_factory=Recording)
 
-# ---------------------------------------------------------------------------------------------
-# The validated scenario.
+    _path: Path | None = PrivateAttr(default=None)
 
+    # -- derived quantities --------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class Initial:
-    """Initial state (SPEC §5): geodetic position, NED velocity, FRD-w.r.t.-NED attitude."""
+    @property
+    def path(self) -> Path | None:
+        """The scenario file (resolved), None for a scenario built from a mapping."""
+        return self._path
 
-    latitude_deg: float
-    longitude_deg: float
-    altitude_m: float
-    velocity_ned_mps: tuple[float, float, float]
-    attitude_rph_deg: tuple[float, float, float]
-
-    def as_dict(self) -> dict[str, Any]:
-        """The scenario-file form (used by the trajectory builders)."""
-        return {
-            "latitude_deg": self.latitude_deg,
-            "longitude_deg": self.longitude_deg,
-            "altitude_m": self.altitude_m,
-            "velocity_ned_mps": list(self.velocity_ned_mps),
-            "attitude_rph_deg": list(self.attitude_rph_deg),
-        }
-
-
-@dataclass(frozen=True)
-class Recording:
-    """Bag output settings: storage plugin, topic names, frame ids, whether to write /clock."""
-
-    storage: str = "mcap"
-    topics: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_TOPICS))
-    frames: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_FRAMES))
-    clock: bool = False
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """A validated scenario. ``raw`` keeps the (override-applied) document for provenance."""
-
-    path: Path | None
-    name: str
-    rate_hz: float
-    oversample: int
-    duration_s: float | None
-    start_time_ns: int
-    gravity_model: str
-    initial: Initial | None
-    trajectory: dict[str, Any]
-    variation: dict[str, Any] | None
-    navigator: dict[str, Any] | None
-    imu_errors: dict[str, Any] | None
-    recording: Recording
-    raw: dict[str, Any]
+    @property
+    def base_dir(self) -> Path:
+        """Directory relative paths in the scenario are resolved against."""
+        return self._path.parent if self._path is not None else Path.cwd()
 
     @property
     def period_ns(self) -> int:
         """Output cycle period T (ns)."""
-        return _integer_ns(1e9 / self.rate_hz)
+        return int(round(1e9 / self.rate_hz))
 
     @property
     def generation_period_ns(self) -> int:
@@ -301,111 +175,72 @@ class Scenario:
         return self.period_ns // self.oversample
 
     @property
-    def base_dir(self) -> Path:
-        """Directory relative paths in the scenario are resolved against."""
-        return self.path.parent if self.path is not None else Path.cwd()
+    def start_time_ns(self) -> int:
+        """Stamp of cycle 0 (ns since the Unix epoch)."""
+        return int(round(self.start_time_s * 1e9))
 
+    def with_path(self, path: Path | None) -> Scenario:
+        """A copy that remembers the file it came from."""
+        copy_ = self.model_copy()
+        copy_._path = path
+        return copy_
 
-def _integer_ns(value: float) -> int:
-    return int(round(value))
+    def with_recording(self, **changes: Any) -> Scenario:
+        """A copy with ``recording`` fields replaced (e.g. topics renamed by node parameters)."""
+        return self.model_copy(update={"recording": self.recording.model_copy(update=changes)})
 
+    # -- cross-field rules ---------------------------------------------------------------------
 
-def _is_integer_ns(value: float) -> bool:
-    return abs(value - round(value)) <= 1e-6 * max(1.0, abs(value)) * 1e-3
+    @field_validator("name", "description", mode="before")
+    @classmethod
+    def _text(cls, value: Any) -> Any:
+        if value is not None and not isinstance(value, str):
+            raise ValueError(f"must be a string, got {value!r}")
+        return value
 
-
-def _parse_initial(data: Any) -> Initial:
-    d = check_mapping(data, "initial", INITIAL_KEYS)
-    lat = read_number(d, "latitude_deg", "initial", required=True, minimum=-90.0, maximum=90.0)
-    lon = read_number(d, "longitude_deg", "initial", required=True, minimum=-180.0, maximum=360.0)
-    alt = read_number(
-        d, "altitude_m", "initial", default=0.0, minimum=-10_000.0, maximum=1_000_000.0
-    )
-    vel = read_vector(d, "velocity_ned_mps", "initial", default=(0.0, 0.0, 0.0))
-    att = read_vector(d, "attitude_rph_deg", "initial", default=(0.0, 0.0, 0.0))
-    assert lat is not None and lon is not None and alt is not None
-    assert vel is not None and att is not None
-    if abs(att[1]) >= 90.0:
-        raise ScenarioError(
-            "initial.attitude_rph_deg[1]", f"pitch must be within ±90°, got {att[1]}"
-        )
-    return Initial(lat, lon, alt, (vel[0], vel[1], vel[2]), (att[0], att[1], att[2]))
-
-
-def _parse_recording(data: Any) -> Recording:
-    d = check_mapping(data, "recording", RECORDING_KEYS)
-    storage = read_choice(d, "storage", "recording", STORAGES, "mcap")
-    topics = dict(DEFAULT_TOPICS)
-    for key, value in check_mapping(d.get("topics"), "recording.topics", DEFAULT_TOPICS).items():
-        if not isinstance(value, str) or not value.startswith("/") or " " in value:
-            raise ScenarioError(
-                f"recording.topics.{key}", f"must be an absolute topic name, got {value!r}"
+    @field_validator("rate_hz")
+    @classmethod
+    def _integer_period(cls, rate: float) -> float:
+        period = 1e9 / rate
+        if not _is_integer_ns(period):
+            raise ValueError(
+                f"the period 1e9/rate_hz = {period!r} ns is not an integer number of "
+                "nanoseconds; choose a rate such as 100, 125, 200, 250, 400, 500 or 1000 Hz"
             )
-        topics[key] = value
-    frames = dict(DEFAULT_FRAMES)
-    for key, value in check_mapping(d.get("frames"), "recording.frames", DEFAULT_FRAMES).items():
-        if not isinstance(value, str) or not value or " " in value:
-            raise ScenarioError(f"recording.frames.{key}", f"must be a frame id, got {value!r}")
-        frames[key] = value
-    clock = read_bool(d, "clock", "recording", False)
-    assert storage is not None
-    return Recording(storage=storage, topics=topics, frames=frames, clock=clock)
+        return rate
+
+    @model_validator(mode="after")
+    def _cross_checks(self) -> Scenario:
+        if self.period_ns % self.oversample:
+            raise ScenarioError(
+                "oversample",
+                f"the generation period T/oversample = {self.period_ns}/{self.oversample} ns is "
+                "not an integer number of nanoseconds",
+            )
+        _legacy_sections(self)
+        return self
 
 
-def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
-    """Validate a scenario document (already loaded from YAML, overrides applied).
-
-    Raises
-    ------
-    ScenarioError
-        Naming the first offending key and the problem.
-    """
-    _check_finite_tree(document, "")
-    doc = check_mapping(document, "", TOP_LEVEL_KEYS)
-    name = doc.get("name", path.stem if path else "scenario")
-    if not isinstance(name, str):
-        raise ScenarioError("name", f"must be a string, got {name!r}")
-    rate = read_number(doc, "rate_hz", "", required=True, exclusive_minimum=0.0, maximum=1e6)
-    assert rate is not None
-    period = 1e9 / rate
-    if not _is_integer_ns(period):
+def _legacy_sections(scenario: Scenario) -> None:
+    """Checks of the sections not yet typed (each moves into its section model)."""
+    trajectory = scenario.trajectory
+    kind = trajectory.get("kind")
+    kinds = ("segments", "samples", "increments", "coning")
+    if kind not in kinds:
         raise ScenarioError(
-            "rate_hz",
-            f"the period 1e9/rate_hz = {period!r} ns is not an integer number of nanoseconds "
-            "(SPEC §2); choose a rate such as 100, 125, 200, 250, 400, 500 or 1000 Hz",
+            "trajectory.kind", f"must be one of: {', '.join(kinds)}; got {kind!r}"
         )
-    oversample = read_int(doc, "oversample", "", default=1, minimum=1)
-    assert oversample is not None
-    if _integer_ns(period) % oversample:
-        raise ScenarioError(
-            "oversample",
-            f"the generation period T/oversample = {_integer_ns(period)}/{oversample} ns is not "
-            "an integer number of nanoseconds",
-        )
-    duration = read_number(doc, "duration_s", "", exclusive_minimum=0.0)
-    start = read_number(doc, "start_time_s", "", default=0.0, minimum=0.0, maximum=4.0e9)
-    assert start is not None
-    start_ns = _integer_ns(start * 1e9)
-    gravity = read_choice(doc, "gravity_model", "", GRAVITY_MODELS, "j2")
-    assert gravity is not None
-    if "trajectory" not in doc:
-        raise ScenarioError("trajectory", "is required")
-    trajectory = _parse_trajectory(doc["trajectory"])
-    # The samples define the start of a `samples` trajectory; elsewhere `initial` is required.
-    if trajectory["kind"] == "samples" and doc.get("initial") is None:
-        initial = None
-    else:
-        initial = _parse_initial(doc.get("initial"))
-
-    def section(key: str) -> dict[str, Any] | None:
-        if key not in doc or doc[key] is None:
-            return None
-        value = doc[key]
-        if not isinstance(value, Mapping):
-            raise ScenarioError(key, f"must be a mapping, got {type(value).__name__}")
-        return dict(value)
-
-    variation = section("variation")
+    allowed = {"segments": ("kind", "segments"), "increments": ("kind", "segments"),
+               "coning": ("kind", "coning")}.get(kind)  # fmt: skip
+    if allowed is not None:
+        for key in trajectory:
+            if key not in allowed:
+                raise ScenarioError(
+                    f"trajectory.{key}", f"unknown key; expected one of: {', '.join(allowed)}"
+                )
+    if kind != "samples" and scenario.initial is None:
+        raise ScenarioError("initial", "is required")
+    variation = scenario.variation
     if variation is not None:
         from strapdown_ros.core.offsets import validate_offsets
 
@@ -422,66 +257,49 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
         except ValueError as exc:
             head, sep, rest = str(exc).partition(": ")
             raise ScenarioError(head if sep else "variation", rest if sep else str(exc)) from None
-    imu_errors = section("imu_errors")
-    if imu_errors is not None:
+    if scenario.imu_errors is not None:
         from strapdown_ros.core.imu_errors import ImuErrorsError, parse_imu_errors
 
         try:
-            parse_imu_errors(imu_errors)
+            parse_imu_errors(scenario.imu_errors)
         except ImuErrorsError as exc:
             raise ScenarioError(exc.key, exc.problem) from None
-    recording = _parse_recording(doc.get("recording"))
-    navigator = section("navigator")
-    if navigator is not None:
+    if scenario.navigator is not None:
         from strapdown_ros.stages.navigation import parse_navigator
 
         parse_navigator(
-            navigator,
-            recording.topics,
-            gravity,
-            {"variation": variation, "imu_errors": section("imu_errors")},
+            scenario.navigator,
+            scenario.recording.topics,
+            scenario.gravity_model,
+            {"variation": variation, "imu_errors": scenario.imu_errors},
         )
-    return Scenario(
-        path=path,
-        name=name,
-        rate_hz=rate,
-        oversample=oversample,
-        duration_s=duration,
-        start_time_ns=start_ns,
-        gravity_model=gravity,
-        initial=initial,
-        trajectory=trajectory,
-        variation=variation,
-        navigator=navigator,
-        imu_errors=section("imu_errors"),
-        recording=recording,
-        raw=copy.deepcopy(dict(doc)),
-    )
-
-
-#: Keys accepted under ``trajectory`` for each kind; ``None``: the kind's builder checks them
-#: (``samples`` has many fitting options, validated by
-#: :meth:`~strapdown_ros.core.trajectory.samples.SamplesTrajectory.from_config`). Values (and
-#: the keys inside segments) are validated by the kind modules, which name the key on error.
-TRAJECTORY_KEYS: dict[str, tuple[str, ...] | None] = {
-    "segments": ("kind", "segments"),
-    "increments": ("kind", "segments"),
-    "coning": ("kind", "coning"),
-    "samples": None,
-}
-
-
-def _parse_trajectory(data: Any) -> dict[str, Any]:
-    if not isinstance(data, Mapping):
-        raise ScenarioError("trajectory", f"must be a mapping, got {type(data).__name__}")
-    kind = read_choice(data, "kind", "trajectory", TRAJECTORY_KINDS, None)
-    assert kind is not None
-    keys = TRAJECTORY_KEYS[kind]
-    return dict(data) if keys is None else check_mapping(data, "trajectory", keys)
 
 
 # ---------------------------------------------------------------------------------------------
-# Overrides and loading.
+# Parsing, overrides and loading.
+
+
+def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
+    """Validate a scenario document (loaded from YAML, overrides applied).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the first offending key and the problem.
+    """
+    if not isinstance(document, Mapping):
+        raise ScenarioError("", f"the top level must be a mapping, got {type(document).__name__}")
+    for key in document:
+        if not isinstance(key, str):
+            raise ScenarioError("", f"keys must be strings, got {key!r}")
+    if "trajectory" in document and not isinstance(document["trajectory"], Mapping):
+        value = document["trajectory"]
+        raise ScenarioError("trajectory", f"must be a mapping, got {type(value).__name__}")
+    document = copy.deepcopy(dict(document))
+    if document.get("name") is None and path is not None:
+        document["name"] = path.stem
+    scenario = validate_section(Scenario, document)
+    return scenario.with_path(path)  # type: ignore[attr-defined]
 
 
 def _parse_path(dotted: str) -> list[str | int]:
@@ -507,7 +325,7 @@ def apply_overrides(document: dict[str, Any], overrides: Iterable[str]) -> dict[
         try:
             value = yaml.safe_load(text)
         except yaml.YAMLError as exc:
-            raise ScenarioError(dotted, f"value {text!r} is not valid YAML: {exc}") from exc
+            raise ScenarioError(dotted, f"value {text!r} is not valid YAML: {exc}") from None
         parts = _parse_path(dotted)
         node: Any = doc
         for i, part in enumerate(parts[:-1]):
@@ -532,6 +350,27 @@ def apply_overrides(document: dict[str, Any], overrides: Iterable[str]) -> dict[
     return doc
 
 
+def read_document(path: Path) -> dict[str, Any]:
+    """The YAML mapping of a scenario file; a :class:`ScenarioError` for anything unreadable."""
+    if not path.is_file():
+        raise ScenarioError("", f"scenario file not found: {path}")
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise ScenarioError("", f"cannot read {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise ScenarioError("", f"{path} is not UTF-8 text (a scenario is a YAML file)") from None
+    try:
+        document = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ScenarioError("", f"{path} is not valid YAML: {exc}") from None
+    if document is None:
+        raise ScenarioError("", f"{path} is empty")
+    if not isinstance(document, dict):
+        raise ScenarioError("", f"{path}: the top level must be a mapping")
+    return document
+
+
 def load_scenario(
     path: str | Path, overrides: Iterable[str] = (), duration_s: float | None = None
 ) -> Scenario:
@@ -547,17 +386,9 @@ def load_scenario(
         Shortcut for ``--duration``: overrides ``duration_s``.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ScenarioError("", f"scenario file not found: {path}")
-    try:
-        document = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ScenarioError("", f"{path} is not valid YAML: {exc}") from exc
-    if document is None:
-        raise ScenarioError("", f"{path} is empty")
-    if not isinstance(document, dict):
-        raise ScenarioError("", f"{path}: the top level must be a mapping")
-    document = apply_overrides(document, overrides)
+    document = apply_overrides(read_document(path), overrides)
     if duration_s is not None:
+        if not isinstance(duration_s, int | float) or not math.isfinite(duration_s):
+            raise ScenarioError("duration_s", f"must be a finite number, got {duration_s!r}")
         document["duration_s"] = duration_s
     return parse_scenario(document, path.resolve())

@@ -15,7 +15,6 @@ subscriber within ``wait_timeout_s``), 2 invalid parameter or scenario.
 from __future__ import annotations
 
 import array
-import dataclasses
 import queue
 import threading
 import time
@@ -153,13 +152,10 @@ class TrajectoryNode(Node):
         self.exit_when_done = declare_bool(self, "exit_when_done", True, "exit after the last")
 
         # The /clock batch exists exactly in 'sim' mode, whatever recording.clock says.
-        recording = dataclasses.replace(
-            scenario.recording, topics=topics, clock=self.time_source == "sim"
-        )
-        self.scenario = dataclasses.replace(scenario, recording=recording)
+        self.scenario = scenario.with_recording(topics=topics, clock=self.time_source == "sim")
         self.imu_topic = topics["reference_imu"]
         data_topics = [topics[k] for k in ("reference_odom", "reference_fix", "reference_imu")]
-        all_topics = ([topics["clock"]] if recording.clock else []) + data_topics
+        all_topics = ([topics["clock"]] if self.scenario.recording.clock else []) + data_topics
         for topic in all_topics:
             if all_topics.count(topic) > 1:
                 raise ParameterError(

@@ -26,8 +26,6 @@ parameter or scenario.
 
 from __future__ import annotations
 
-import dataclasses
-
 from strapdown_ros.bag import cdr
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.core.variation import GRAVITY_MODES
@@ -114,8 +112,7 @@ class VariationNode(BatchedInputNode):
         # arrays dominates): batches of batch_period_s (default 10 ms) keep 1 kHz affordable.
         self.declare_batched_input("the last cycle")
 
-        recording = dataclasses.replace(scenario.recording, topics=topics)
-        self.scenario = dataclasses.replace(scenario, recording=recording)
+        self.scenario = scenario.with_recording(topics=topics)
         log = self.get_logger()
         self.solver = VariationSolver(
             self.scenario,

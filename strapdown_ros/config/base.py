@@ -1,0 +1,241 @@
+"""Building blocks of the scenario model: the strict base model, field types, error messages.
+
+Every section of a scenario file is a :class:`Model` (pydantic v2): unknown keys are rejected
+(``extra="forbid"``), numbers are strict (no strings, no booleans, no NaN or infinity; an
+integer is accepted where a real number is expected) and a validated model is frozen. A
+:class:`pydantic.ValidationError` is turned into one :class:`ScenarioError` whose key reads
+like the file, e.g. ``trajectory.segments[2].accel_mps2: must be a finite number, got nan``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+import typing
+from collections.abc import Mapping, Sequence
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    Strict,
+    ValidationError,
+)
+
+__all__ = [
+    "Finite",
+    "Model",
+    "NonNegative",
+    "Positive",
+    "ScenarioError",
+    "StrictBool",
+    "StrictInt",
+    "Vector3",
+    "error_from_validation",
+    "join_key",
+]
+
+
+class ScenarioError(ValueError):
+    """A scenario file or override is invalid; ``key`` is the dotted path of the culprit.
+
+    The message is ``"<key>: <problem>"`` (the key alone names the value in the file, e.g.
+    ``trajectory.segments[2].accel_mps2``); ``key`` is empty for problems of the whole file.
+    """
+
+    def __init__(self, key: str, problem: str) -> None:
+        self.key = key
+        self.problem = problem
+        super().__init__(f"{key}: {problem}" if key else problem)
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:  # picklable across processes
+        return (type(self), (self.key, self.problem))
+
+
+#: A finite real number (an integer is accepted; strings, booleans, NaN and ±inf are not).
+Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+#: A finite number > 0.
+Positive = Annotated[float, Strict(), Field(allow_inf_nan=False, gt=0.0)]
+#: A finite number >= 0.
+NonNegative = Annotated[float, Strict(), Field(allow_inf_nan=False, ge=0.0)]
+#: An integer (not a float, not a boolean).
+StrictInt = Annotated[int, Strict()]
+#: ``true`` or ``false``.
+StrictBool = Annotated[bool, Strict()]
+
+
+def _length(n: int) -> Any:
+    def check(value: Any) -> Any:
+        if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
+            raise ValueError(f"must be a list of {n} numbers, got {value!r}")
+        if len(value) != n:
+            raise ValueError(f"must be a list of {n} numbers, got {len(value)}: {value!r}")
+        return tuple(value)
+
+    return BeforeValidator(check)
+
+
+#: Three finite numbers, e.g. ``[1.0, 0.0, -0.5]`` (a vector in the axes its key names).
+Vector3 = Annotated[tuple[Finite, Finite, Finite], _length(3)]
+
+
+def vector(n: int) -> Any:
+    """The type of a list of ``n`` finite numbers."""
+    return Annotated[tuple[(Finite,) * n], _length(n)]  # type: ignore[misc]
+
+
+class Model(BaseModel):
+    """Base of every scenario section: unknown keys rejected, frozen once validated."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# ValidationError -> ScenarioError
+
+
+def join_key(path: str, key: str | int) -> str:
+    """``path`` extended by a mapping key (``a.b``) or a list index (``a[2]``)."""
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    return f"{path}.{key}" if path else key
+
+
+def _unwrap(annotation: Any) -> list[Any]:
+    """The model classes / containers an annotation may hold (Annotated, Optional, unions)."""
+    origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _unwrap(typing.get_args(annotation)[0])
+    if origin in (Union, types.UnionType):
+        out: list[Any] = []
+        for arg in typing.get_args(annotation):
+            out += _unwrap(arg)
+        return out
+    return [annotation]
+
+
+def _model_kind(model: type[BaseModel]) -> str | None:
+    field = model.model_fields.get("kind")
+    if field is None:
+        return None
+    args = typing.get_args(field.annotation)
+    return args[0] if typing.get_origin(field.annotation) is Literal and len(args) == 1 else None
+
+
+def _keys_at(root: type[BaseModel], loc: Sequence[str | int], document: Any) -> tuple[str, Any]:
+    """Dotted key of ``loc`` (tagged-union tags removed) and the model type found there."""
+    key = ""
+    types_here: list[Any] = [root]
+    node = document
+    i = 0
+    while i < len(loc):
+        part = loc[i]
+        models = [t for t in types_here if isinstance(t, type) and issubclass(t, BaseModel)]
+        # A tagged union puts the tag in the location right after the union's field.
+        if isinstance(part, str) and isinstance(node, Mapping) and node.get("kind") == part:
+            tagged = [m for m in models if _model_kind(m) == part]
+            if tagged and (len(models) > 1 or part not in tagged[0].model_fields):
+                types_here, i = tagged, i + 1
+                continue
+        key = join_key(key, part)
+        nxt: list[Any] = []
+        if isinstance(part, int):
+            for t in types_here:
+                origin = typing.get_origin(t)
+                if origin in (list, tuple):
+                    args = [a for a in typing.get_args(t) if a is not Ellipsis]
+                    if args:
+                        nxt += _unwrap(args[min(part, len(args) - 1)])
+        else:
+            for m in models:
+                if part in m.model_fields:
+                    nxt += _unwrap(m.model_fields[part].annotation)
+        types_here = nxt
+        try:
+            node = node[part]  # type: ignore[index]
+        except (KeyError, IndexError, TypeError):
+            node = None
+        i += 1
+    return key, types_here
+
+
+def _format(error: Mapping[str, Any], allowed: Sequence[str]) -> str:
+    kind = error["type"]
+    value = error.get("input")
+    if kind == "extra_forbidden":
+        return "unknown key; expected one of: " + ", ".join(allowed) if allowed else "unknown key"
+    if kind == "missing":
+        return "is required"
+    if kind == "union_tag_invalid":
+        ctx = error.get("ctx", {})
+        return f"kind must be one of: {ctx.get('expected_tags', '')}; got {ctx.get('tag')!r}"
+    if kind == "union_tag_not_found":
+        return "is missing its 'kind'"
+    if kind == "literal_error":
+        expected = error.get("ctx", {}).get("expected", "")
+        return f"must be one of: {expected}; got {value!r}"
+    if kind in ("float_type", "int_type", "float_parsing", "int_from_float"):
+        want = "an integer" if kind.startswith("int") else "a number"
+        return f"must be {want}, got {type(value).__name__} {value!r}"
+    if kind == "finite_number":
+        return f"must be finite, got {value!r}"
+    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        ctx = error.get("ctx", {})
+        op, bound = {
+            "greater_than": (">", ctx.get("gt")),
+            "greater_than_equal": (">=", ctx.get("ge")),
+            "less_than": ("<", ctx.get("lt")),
+            "less_than_equal": ("<=", ctx.get("le")),
+        }[kind]
+        return f"must be {op} {bound}, got {value!r}"
+    if kind == "bool_type":
+        return f"must be true or false, got {value!r}"
+    if kind in ("string_type",):
+        return f"must be a string, got {value!r}"
+    if kind in ("model_type", "model_attributes_type", "dict_type"):
+        return f"must be a mapping, got {type(value).__name__}"
+    if kind in ("list_type", "tuple_type"):
+        return f"must be a list, got {value!r}"
+    if kind == "value_error":
+        return str(error.get("ctx", {}).get("error", error["msg"]))
+    return f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}"
+
+
+def error_from_validation(
+    exc: ValidationError, root: type[BaseModel], document: Any, prefix: str = ""
+) -> ScenarioError:
+    """The first error of a pydantic validation as a :class:`ScenarioError` naming the key."""
+    error = exc.errors(include_url=False)[0]
+    loc = list(error["loc"])
+    key, _ = _keys_at(root, loc, document)
+    allowed: list[str] = []
+    if error["type"] == "extra_forbidden":
+        _, parents = _keys_at(root, loc[:-1], document)
+        for t in parents:
+            if isinstance(t, type) and issubclass(t, BaseModel):
+                allowed += [n for n in t.model_fields if n not in allowed]
+        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+        problem = _format(error, allowed)
+        if close:
+            problem = f"unknown key (did you mean {close[0]!r}?); expected one of: " + ", ".join(
+                allowed
+            )
+    else:
+        problem = _format(error, allowed)
+        inner = error.get("ctx", {}).get("error") if error["type"] == "value_error" else None
+        if isinstance(inner, ScenarioError):  # a validator naming a key below its model
+            key = ".".join(k for k in (key, inner.key) if k).replace(".[", "[")
+            problem = inner.problem
+    if prefix:
+        key = join_key(prefix, key) if key else prefix
+    return ScenarioError(key, problem)
+
+
+def validate_section(model: type[Model], data: Any, key: str = "") -> Model:
+    """``model.model_validate(data)``, errors as a :class:`ScenarioError` under ``key``."""
+    try:
+        return model.model_validate({} if data is None else data)
+    except ValidationError as exc:
+        raise error_from_validation(exc, model, data, key) from None
