@@ -271,6 +271,7 @@ class _McapOut:
     rosbag2: dict[str, str] = field(default_factory=dict)  #: the original record's entries
 
     def finish(self, serialized_metadata: str) -> None:
+        self.writer.flush()  # the last chunk first: the record follows the data, as rosbag2's
         self.writer.add_metadata(
             _ROSBAG2, {**self.rosbag2, "serialized_metadata": serialized_metadata}
         )
@@ -333,7 +334,7 @@ def _copy_records(scan: McapScan, out: _McapOut, found: _Found, report: RepairRe
     def start(library: str) -> None:
         nonlocal started
         tag = f"strapdown-sim bag repair ({LIBRARY_IDENTIFIER})"
-        writer.start(_PROFILE, f"{library}; {tag}" if library else tag)
+        writer.start(_PROFILE, library if tag in library else f"{library}; {tag}".strip("; "))
         started = True
 
     for rec in scan.records():

@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
 from strapdown_ros.config import Scenario
-from strapdown_ros.config.scenario import (
+from strapdown_ros.config._legacy_readers import (
     ScenarioError,
     check_mapping,
     read_bool,
