@@ -173,12 +173,12 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from strapdown_ros.stages.reference import build_trajectory, natural_duration
+    from strapdown_ros.stages.reference import build_trajectory, natural_duration, output_cycles
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
     trajectory = build_trajectory(scenario)
     natural = natural_duration(scenario, trajectory)
-    duration = scenario.duration_s if scenario.duration_s is not None else natural
+    duration = output_cycles(scenario, trajectory) * scenario.period_ns * 1e-9
     print(
         f"{scenario.path}: valid; {scenario.trajectory['kind']} trajectory of {natural:g} s, "
         f"{duration:g} s at {scenario.rate_hz:g} Hz (oversample {scenario.oversample}), "

@@ -367,7 +367,10 @@ def read_document(path: Path) -> dict[str, Any]:
     try:
         document = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ScenarioError("", f"{path} is not valid YAML: {exc}") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ScenarioError("", f"{path} is not valid YAML{where}: {problem}") from None
     if document is None:
         raise ScenarioError("", f"{path} is empty")
     if not isinstance(document, dict):
