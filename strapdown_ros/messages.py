@@ -70,7 +70,10 @@ __all__ = [
     "STATUS_FIX",
     "ClockFields",
     "EarthState",
+    "FluidPressureFields",
     "ImuFields",
+    "MagneticFieldFields",
+    "TwistWithCovarianceStampedFields",
     "ImuIncrements",
     "NavSatFixFields",
     "OdometryFields",
@@ -234,6 +237,44 @@ class NavSatFixFields(_Fields):
     altitude: F64
     position_covariance: F64
     position_covariance_type: NDArray[np.uint8]
+
+
+@dataclass(frozen=True, eq=False)
+class TwistWithCovarianceStampedFields(_Fields):
+    """``geometry_msgs/msg/TwistWithCovarianceStamped`` of N messages (aiding, issue 16).
+
+    ``linear`` (N, 3) m/s, ``angular`` (N, 3) rad/s in the axes ``frame_id`` states (see
+    docs/aiding.md: ENU for ``/gnss/vel``, the vehicle FLU axes for ``/wheel/twist``);
+    ``covariance`` (N, 36) row-major over (linear, angular).
+    """
+
+    stamps_ns: I64
+    frame_id: str
+    linear: F64
+    angular: F64
+    covariance: F64
+
+
+@dataclass(frozen=True, eq=False)
+class FluidPressureFields(_Fields):
+    """``sensor_msgs/msg/FluidPressure`` of N messages: ``fluid_pressure`` (N,) Pa, ``variance``
+    (N,) Pa² (0: unknown)."""
+
+    stamps_ns: I64
+    frame_id: str
+    fluid_pressure: F64
+    variance: F64
+
+
+@dataclass(frozen=True, eq=False)
+class MagneticFieldFields(_Fields):
+    """``sensor_msgs/msg/MagneticField`` of N messages: ``magnetic_field`` (N, 3) tesla in the
+    body FLU axes of ``frame_id``, ``magnetic_field_covariance`` (N, 9) T², row-major."""
+
+    stamps_ns: I64
+    frame_id: str
+    magnetic_field: F64
+    magnetic_field_covariance: F64
 
 
 @dataclass(frozen=True, eq=False)

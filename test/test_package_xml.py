@@ -56,6 +56,8 @@ MODULE_KEYS: dict[str, str | None] = {
     # no rosdep key (pip install, see docs/development.md)
     "mpmath": None,
     "mcap_ros2": None,
+    "pyIGRF14": None,  # IGRF-14 coefficients (aiding magnetometer)
+    "ambiance": None,  # ICAO atmosphere reference in the aiding tests
 }
 
 #: Keys used without an import: pytest plugins configured in setup.cfg.

@@ -13,7 +13,9 @@ variable fields are written column-wise, and padding stays zero exactly as ``ros
 byte-identical to ``rosbags.typesys`` ``serialize_cdr`` of the ``ROS2_JAZZY`` store (tested).
 
 Supported types: ``sensor_msgs/msg/Imu``, ``nav_msgs/msg/Odometry``,
-``sensor_msgs/msg/NavSatFix``, ``rosgraph_msgs/msg/Clock``, ``geometry_msgs/msg/Vector3Stamped``.
+``sensor_msgs/msg/NavSatFix``, ``rosgraph_msgs/msg/Clock``, ``geometry_msgs/msg/Vector3Stamped``;
+for the aiding sensors ``geometry_msgs/msg/TwistWithCovarianceStamped``,
+``sensor_msgs/msg/FluidPressure`` and ``sensor_msgs/msg/MagneticField``.
 """
 
 from __future__ import annotations
@@ -29,16 +31,22 @@ from numpy.typing import NDArray
 
 from strapdown_ros.messages import (
     ClockFields,
+    FluidPressureFields,
     ImuFields,
+    MagneticFieldFields,
     NavSatFixFields,
     OdometryFields,
+    TwistWithCovarianceStampedFields,
     Vector3StampedFields,
     stamps_to_sec_nanosec,
 )
 
 __all__ = [
     "CLOCK",
+    "FLUID_PRESSURE",
     "IMU",
+    "MAGNETIC_FIELD",
+    "TWIST_WITH_COVARIANCE_STAMPED",
     "MSGTYPES",
     "NAVSATFIX",
     "ODOMETRY",
@@ -52,6 +60,9 @@ __all__ = [
 ]
 
 IMU = "sensor_msgs/msg/Imu"
+TWIST_WITH_COVARIANCE_STAMPED = "geometry_msgs/msg/TwistWithCovarianceStamped"
+FLUID_PRESSURE = "sensor_msgs/msg/FluidPressure"
+MAGNETIC_FIELD = "sensor_msgs/msg/MagneticField"
 ODOMETRY = "nav_msgs/msg/Odometry"
 NAVSATFIX = "sensor_msgs/msg/NavSatFix"
 CLOCK = "rosgraph_msgs/msg/Clock"
@@ -285,6 +296,44 @@ def _unpack_vec(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> Ve
     return Vector3StampedFields(t, s[0], np.ascontiguousarray(arr["d"]))
 
 
+def _pack_twist(arr: np.ndarray, f: TwistWithCovarianceStampedFields) -> None:
+    d = arr["d"]
+    _put(d[:, 0:3], f.linear)
+    _put(d[:, 3:6], f.angular)
+    _put(d[:, 6:42], f.covariance)
+
+
+def _unpack_twist(
+    arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]
+) -> TwistWithCovarianceStampedFields:
+    d = np.ascontiguousarray(arr["d"])
+    return TwistWithCovarianceStampedFields(t, s[0], d[:, 0:3], d[:, 3:6], d[:, 6:42])
+
+
+def _pack_pressure(arr: np.ndarray, f: FluidPressureFields) -> None:
+    d = arr["d"]
+    d[:, 0] = f.fluid_pressure
+    d[:, 1] = f.variance
+
+
+def _unpack_pressure(
+    arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]
+) -> FluidPressureFields:
+    d = np.ascontiguousarray(arr["d"])
+    return FluidPressureFields(t, s[0], d[:, 0].copy(), d[:, 1].copy())
+
+
+def _pack_mag(arr: np.ndarray, f: MagneticFieldFields) -> None:
+    d = arr["d"]
+    _put(d[:, 0:3], f.magnetic_field)
+    _put(d[:, 3:12], f.magnetic_field_covariance)
+
+
+def _unpack_mag(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> MagneticFieldFields:
+    d = np.ascontiguousarray(arr["d"])
+    return MagneticFieldFields(t, s[0], d[:, 0:3], d[:, 3:12])
+
+
 MSGTYPES: dict[str, Codec] = {
     IMU: Codec(
         IMU,
@@ -332,6 +381,31 @@ MSGTYPES: dict[str, Codec] = {
         lambda f: (f.frame_id,),
         _pack_vec,
         _unpack_vec,  # type: ignore[attr-defined]
+    ),
+    # aiding sensors (issue 16)
+    TWIST_WITH_COVARIANCE_STAMPED: Codec(
+        TWIST_WITH_COVARIANCE_STAMPED,
+        TwistWithCovarianceStampedFields,
+        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 42)),
+        lambda f: (f.frame_id,),
+        _pack_twist,
+        _unpack_twist,  # type: ignore[arg-type]
+    ),
+    FLUID_PRESSURE: Codec(
+        FLUID_PRESSURE,
+        FluidPressureFields,
+        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 2)),
+        lambda f: (f.frame_id,),
+        _pack_pressure,
+        _unpack_pressure,  # type: ignore[arg-type]
+    ),
+    MAGNETIC_FIELD: Codec(
+        MAGNETIC_FIELD,
+        MagneticFieldFields,
+        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 12)),
+        lambda f: (f.frame_id,),
+        _pack_mag,
+        _unpack_mag,  # type: ignore[arg-type]
     ),
 }
 

@@ -1,0 +1,189 @@
+"""Magnetometer: a geomagnetic main-field model rotated into the body, plus sensor errors.
+
+``m̃^B = S (C_N^B B^N) + b_hi + n``: the model field ``B^N`` (NED) at the sensor's position
+rotated by the true attitude, a soft-iron matrix S, a hard-iron offset ``b_hi`` and white
+noise, body FRD. :func:`igrf_field_ned` is a vectorized spherical-harmonic synthesis of a
+Gauss-coefficient model (IGRF; the coefficients are plain arrays supplied by the caller, see
+``docs/aiding.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from strapdown_ros.core.aiding.common import check_period, mat_t_vec, mat_vec, sensor_rng
+
+__all__ = [
+    "IGRF_REFERENCE_RADIUS_M",
+    "MAG_NORMALS_PER_EPOCH",
+    "MagnetometerErrorModel",
+    "MagnetometerErrors",
+    "field_body",
+    "igrf_field_ned",
+]
+
+Array = NDArray[np.float64]
+
+#: Reference radius a of the IGRF / WMM spherical-harmonic expansions (6371.2 km).
+IGRF_REFERENCE_RADIUS_M = 6371200.0
+
+#: Standard normals per epoch: white 3.
+MAG_NORMALS_PER_EPOCH = 3
+
+
+def igrf_field_ned(
+    r_e: ArrayLike, lat: ArrayLike, g: ArrayLike, h: ArrayLike,
+    radius_m: float = IGRF_REFERENCE_RADIUS_M,
+) -> Array:  # fmt: skip
+    """Main-field vector (nT) in the geodetic NED frame at ECEF positions.
+
+    ``V = a Σ_n (a/r)^{n+1} Σ_m (g_n^m cos mλ + h_n^m sin mλ) P_n^m(cos θ)`` with Schmidt
+    semi-normalized associated Legendre functions, ``B = −∇V`` in geocentric spherical
+    components (θ geocentric colatitude, λ longitude, r radius of ``r_e``), then rotated from
+    the geocentric to the geodetic local level by ``δ = φ − φ_gc``.
+
+    Parameters
+    ----------
+    r_e : (n, 3)
+        ECEF positions, m.
+    lat : (n,)
+        Their geodetic latitudes φ, rad (for the rotation to geodetic north/down).
+    g, h : (N+1, N+1)
+        Gauss coefficients ``g[n, m]``, ``h[n, m]`` (nT) at the epoch of interest; ``[0, 0]``
+        and ``h[n, 0]`` ignored.
+    radius_m : float
+        Reference radius a of the expansion.
+
+    Returns
+    -------
+    (n, 3)
+        ``B^N = (X north, Y east, Z down)``, nT.
+    """
+    r_e = np.asarray(r_e, dtype=np.float64)
+    g = np.asarray(g, dtype=np.float64)
+    h = np.asarray(h, dtype=np.float64)
+    nmax = g.shape[0] - 1
+    x, y, z = r_e[:, 0], r_e[:, 1], r_e[:, 2]
+    p = np.hypot(x, y)
+    r = np.hypot(p, z)
+    ct, st = z / r, p / r  # geocentric colatitude θ: cos θ, sin θ
+    lon = np.arctan2(y, x)
+    ratio = radius_m / r
+    npts = r.shape[0]
+    # cos mλ, sin mλ by the angle-addition recursion.
+    cm = np.empty((nmax + 1, npts))
+    sm = np.empty((nmax + 1, npts))
+    cm[0], sm[0] = 1.0, 0.0
+    if nmax >= 1:
+        cm[1], sm[1] = np.cos(lon), np.sin(lon)
+    for m in range(2, nmax + 1):
+        cm[m] = cm[m - 1] * cm[1] - sm[m - 1] * sm[1]
+        sm[m] = sm[m - 1] * cm[1] + cm[m - 1] * sm[1]
+    pnm = np.zeros((nmax + 1, nmax + 1, npts))
+    dnm = np.zeros((nmax + 1, nmax + 1, npts))  # dP/dθ
+    pnm[0, 0] = 1.0
+    bx = np.zeros(npts)  # X_gc = -B_θ
+    by = np.zeros(npts)  # Y = B_λ
+    bz = np.zeros(npts)  # Z_gc = -B_r
+    rr = ratio * ratio
+    for n in range(1, nmax + 1):
+        rr = rr * ratio  # (a/r)^{n+2}
+        for m in range(n + 1):
+            if m == n:
+                if n == 1:
+                    pnm[1, 1] = st
+                    dnm[1, 1] = ct
+                else:
+                    k = np.sqrt((2.0 * n - 1.0) / (2.0 * n))
+                    pnm[n, n] = k * st * pnm[n - 1, n - 1]
+                    dnm[n, n] = k * (st * dnm[n - 1, n - 1] + ct * pnm[n - 1, n - 1])
+            else:
+                a1 = (2.0 * n - 1.0) / np.sqrt(n * n - m * m)
+                a2 = np.sqrt((n - 1.0) ** 2 - m * m) / np.sqrt(n * n - m * m)
+                pnm[n, m] = a1 * ct * pnm[n - 1, m]
+                dnm[n, m] = a1 * (ct * dnm[n - 1, m] - st * pnm[n - 1, m])
+                if n - 2 >= m:
+                    pnm[n, m] = pnm[n, m] - a2 * pnm[n - 2, m]
+                    dnm[n, m] = dnm[n, m] - a2 * dnm[n - 2, m]
+            gc = g[n, m] * cm[m] + h[n, m] * sm[m]
+            bx = bx + rr * gc * dnm[n, m]
+            bz = bz - rr * (n + 1.0) * gc * pnm[n, m]
+            if m > 0:
+                gs = g[n, m] * sm[m] - h[n, m] * cm[m]
+                by = by + rr * m * gs * pnm[n, m]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        by = np.where(st > 0, by / np.where(st > 0, st, 1.0), 0.0)
+    # Geocentric -> geodetic local level: rotate (X, Z) by δ = φ - φ_gc about east.
+    lat = np.asarray(lat, dtype=np.float64)
+    delta = lat - np.arctan2(z, p)
+    cd, sd = np.cos(delta), np.sin(delta)
+    north = bx * cd + bz * sd
+    down = bz * cd - bx * sd
+    return np.stack([north, by, down], axis=-1)
+
+
+def field_body(c_b_n: ArrayLike, field_ned: ArrayLike) -> Array:
+    """``C_N^B B^N = (C_B^N)ᵀ B^N`` (n, 3): the field in body axes, element-wise sums."""
+    return mat_t_vec(np.asarray(c_b_n, dtype=np.float64), np.asarray(field_ned, dtype=np.float64))
+
+
+def _zeros() -> Array:
+    return np.zeros(3)
+
+
+def _identity() -> Array:
+    return np.eye(3)
+
+
+@dataclass(frozen=True)
+class MagnetometerErrors:
+    """Magnetometer errors, body FRD, tesla.
+
+    ``hard_iron`` fixed offset (3,); ``hard_iron_sigma`` σ of an offset drawn per run (3,);
+    ``soft_iron`` the 3×3 matrix S (identity: none); ``white`` noise σ per axis (3,).
+    """
+
+    hard_iron: Array = field(default_factory=_zeros)
+    hard_iron_sigma: Array = field(default_factory=_zeros)
+    soft_iron: Array = field(default_factory=_identity)
+    white: Array = field(default_factory=_zeros)
+
+    @property
+    def variance(self) -> Array:
+        """Variance of one message's random error per FRD axis (T²): white²."""
+        return np.asarray(self.white) ** 2
+
+
+class MagnetometerErrorModel:
+    """Seeded magnetometer errors at consecutive epochs (chunk-invariant).
+
+    3 normals at construction (hard iron), :data:`MAG_NORMALS_PER_EPOCH` per epoch.
+    """
+
+    def __init__(self, errors: MagnetometerErrors, period_s: float, seed: int) -> None:
+        self.errors = errors
+        self.period_s = check_period(period_s)
+        self._rng = sensor_rng(seed, "magnetometer")
+        init = self._rng.standard_normal(3)
+        self.hard_iron = np.asarray(errors.hard_iron) + np.asarray(errors.hard_iron_sigma) * init
+        self._soft = np.asarray(errors.soft_iron, dtype=np.float64)
+        self._identity = bool(np.array_equal(self._soft, np.eye(3)))
+        self.epochs = 0
+
+    def apply(self, field_b: ArrayLike) -> Array:
+        """Measured field (n, 3) of the true body field (n, 3) at the next n epochs (T, FRD)."""
+        b = np.asarray(field_b, dtype=np.float64)
+        n = b.shape[0]
+        z = self._rng.standard_normal((n, MAG_NORMALS_PER_EPOCH))
+        soft = b if self._identity else mat_vec(np.broadcast_to(self._soft, (n, 3, 3)), b)
+        self.epochs += n
+        return soft + (self.hard_iron + np.asarray(self.errors.white) * z)
+
+    def skip(self, n: int) -> None:
+        """Advance over ``n`` epochs without output (random state)."""
+        if n > 0:
+            self._rng.standard_normal((n, MAG_NORMALS_PER_EPOCH))
+            self.epochs += n

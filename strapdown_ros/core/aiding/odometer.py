@@ -1,0 +1,128 @@
+"""Wheel odometer: speed of a wheel contact point along the body x axis, plus sensor errors.
+
+Truth: ``v_c^B = C_E^B v^E + ω_eb^B × l`` (the contact point at lever arm ``l``, body FRD),
+speed ``u = v_c^B · x``. Errors: scale factor (fixed + drawn per run), white noise, then
+quantization by the encoder's pulses per metre with the residual carried (the distance
+counted over any span differs from the distance travelled by less than one pulse). See
+``docs/aiding.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from strapdown_ros.core.aiding.common import check_period, mat_t_vec, sensor_rng
+
+__all__ = [
+    "ODOMETER_NORMALS_PER_EPOCH",
+    "OdometerErrorModel",
+    "OdometerErrors",
+    "contact_point_speed",
+    "contact_point_velocity",
+]
+
+Array = NDArray[np.float64]
+
+#: Standard normals per epoch: white 1.
+ODOMETER_NORMALS_PER_EPOCH = 1
+
+
+def contact_point_velocity(
+    v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
+) -> Array:
+    """Earth-relative velocity (m/s, body FRD) of the point at ``lever_arm_b`` (m, FRD).
+
+    ``C_E^B v^E + ω_eb^B × l`` with ``c_b_e = C_FRD^E`` (n, 3, 3), ``v_e`` (n, 3) ECEF and
+    ``omega_eb_b`` (n, 3) rad/s FRD.
+    """
+    v = np.asarray(v_e, dtype=np.float64)
+    c = np.asarray(c_b_e, dtype=np.float64)
+    w = np.asarray(omega_eb_b, dtype=np.float64)
+    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
+    wxl = np.stack(
+        [
+            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
+            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
+            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
+        ],
+        axis=-1,
+    )
+    return mat_t_vec(c, v) + wxl
+
+
+def contact_point_speed(
+    v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
+) -> Array:
+    """Speed (m/s) along body x of the contact point (see :func:`contact_point_velocity`)."""
+    return contact_point_velocity(v_e, c_b_e, omega_eb_b, lever_arm_b)[:, 0]
+
+
+@dataclass(frozen=True)
+class OdometerErrors:
+    """Odometer error parameters."""
+
+    scale_factor: float = 0.0  #: fixed scale-factor error (dimensionless; 1e-3 = 1000 ppm)
+    scale_factor_sigma: float = 0.0  #: σ of a scale-factor error drawn per run
+    white: float = 0.0  #: white noise σ, m/s
+    pulses_per_m: float = 0.0  #: encoder pulses per metre (0: no quantization)
+
+    def variance(self, period_s: float) -> float:
+        """Variance of one speed's random error ((m/s)²): white² + (q/P)²/6, q = 1/pulses_per_m.
+
+        (The quantization error of a speed is the difference of two residuals uniform over
+        one pulse, divided by the epoch period P.)
+        """
+        q = 1.0 / self.pulses_per_m if self.pulses_per_m > 0 else 0.0
+        return self.white**2 + (q / period_s) ** 2 / 6.0
+
+
+class OdometerErrorModel:
+    """Seeded odometer errors at consecutive epochs (chunk-invariant).
+
+    1 normal at construction (scale factor), :data:`ODOMETER_NORMALS_PER_EPOCH` per epoch.
+
+    The measured speed of an epoch is taken as the mean over the epoch period P: the encoder
+    count is ``floor(D_k / q)`` with ``D_k`` the running sum of ``ũ_k P``, and the emitted
+    speed is ``q (n_k − n_{k−1}) / P``.
+    """
+
+    def __init__(self, errors: OdometerErrors, period_s: float, seed: int) -> None:
+        self.errors = errors
+        self.period_s = check_period(period_s)
+        self._rng = sensor_rng(seed, "wheel_odometer")
+        init = self._rng.standard_normal(1)
+        self.scale_factor = errors.scale_factor + errors.scale_factor_sigma * float(init[0])
+        self.quantum = 1.0 / errors.pulses_per_m if errors.pulses_per_m > 0 else 0.0
+        self._distance = 0.0  # running sum of the quantizer inputs, m
+        self._count = 0.0  # floor(distance / q) after the last epoch
+        self.epochs = 0
+
+    def apply(self, speed: ArrayLike) -> Array:
+        """Measured speeds (n,) of the true ones (n,) at the next n epochs (m/s)."""
+        u = np.asarray(speed, dtype=np.float64)
+        n = u.shape[0]
+        z = self._rng.standard_normal((n, ODOMETER_NORMALS_PER_EPOCH))
+        out = u + (self.scale_factor * u + self.errors.white * z[:, 0])
+        q = self.quantum
+        if q > 0 and n:
+            period = self.period_s
+            cum = np.cumsum(np.concatenate([[self._distance], out * period]))
+            counts = np.floor(cum[1:] / q)
+            previous = np.concatenate([[self._count], counts[:-1]])
+            out = (counts - previous) * q / period
+            self._distance = float(cum[-1])
+            self._count = float(counts[-1])
+        self.epochs += n
+        return out
+
+    def skip(self, n: int) -> None:
+        """Advance over ``n`` epochs without output.
+
+        The random state advances; the encoder count misses the distance of those epochs.
+        """
+        if n > 0:
+            self._rng.standard_normal((n, ODOMETER_NORMALS_PER_EPOCH))
+            self.epochs += n

@@ -1,0 +1,462 @@
+"""Aiding measurements (issue 16): GNSS, barometer, magnetometer and wheel odometer from the truth.
+
+One streaming stage used by ``strapdown-sim generate`` and the live node: the reference truth
+``nav_msgs/Odometry`` goes in (decoded fields or CDR payloads, in chunks of any size, state
+carried), serialized messages come out per topic, the same bytes for any chunking. The models
+are in :mod:`strapdown_ros.core.aiding`; the section in :mod:`strapdown_ros.config.aiding`;
+equations, frames and presets in docs/aiding.md.
+
+* **Epochs.** A truth message is an epoch of a sensor when its stamp is a multiple of the
+  sensor's period P (absolute time; GNSS epochs fall on whole seconds). The error model of a
+  sensor counts epochs from the first one at or after the scenario's start, so a live input
+  that starts late or has gaps gets the noise of an uninterrupted run (missing epochs are
+  skipped: their random numbers are drawn, the processes advanced, nothing is published).
+* **Latency** (GNSS). Header stamp = measurement time; the message is released (published,
+  bag log time) at ``stamp + latency_s``, i.e. with the first truth message at or after that
+  time; messages due after the last truth message are never released.
+* **Outages** (GNSS). No message whose measurement time is inside a window (the errors still
+  run through it).
+* **Geomagnetic field.** IGRF-14 Gauss coefficients from ``pyIGRF14`` (the package's
+  coefficient table and its date interpolation) at the scenario's decimal year, synthesized by
+  :func:`~strapdown_ros.core.aiding.magnetometer.igrf_field_ned` (vectorized, numpy). The
+  package is imported here, not in the core (the core is numpy/scipy only).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.batches import Batch
+from strapdown_ros.config import Scenario, ScenarioError
+from strapdown_ros.config.aiding import (
+    AIDING_TOPICS,
+    AidingSpec,
+    BarometerSpec,
+    GnssSpec,
+    MagnetometerSpec,
+    WheelOdometerSpec,
+)
+from strapdown_ros.core.aiding.baro import BaroErrorModel, icao_pressure
+from strapdown_ros.core.aiding.common import mat_t_vec, mat_vec
+from strapdown_ros.core.aiding.gnss import GnssErrorModel, antenna_state, gnss_measurement
+from strapdown_ros.core.aiding.magnetometer import MagnetometerErrorModel, igrf_field_ned
+from strapdown_ros.core.aiding.odometer import OdometerErrorModel, contact_point_velocity
+from strapdown_ros.core.earth import dcm_ned_to_ecef, ecef_to_geodetic
+from strapdown_ros.core.rotations import frd_to_flu
+from strapdown_ros.messages import (
+    COVARIANCE_TYPE_DIAGONAL_KNOWN,
+    FluidPressureFields,
+    MagneticFieldFields,
+    OdometryFields,
+    TwistWithCovarianceStampedFields,
+    navsatfix_fields_from_geodetic,
+    odometry_state,
+)
+
+__all__ = [
+    "NOT_MEASURED_VARIANCE",
+    "AidingOutput",
+    "AidingStream",
+    "TruthRows",
+    "aiding_spec",
+    "epochs_in",
+    "igrf_coefficients",
+]
+
+Log = Callable[[str], None]
+
+#: Variance given to twist components a sensor does not measure (the angular rates).
+NOT_MEASURED_VARIANCE = 1e6
+
+
+def _ignore(_: str) -> None:
+    return None
+
+
+def aiding_spec(scenario: Scenario) -> AidingSpec | None:
+    """The scenario's ``aiding`` section (None without one)."""
+    return getattr(scenario, "aiding", None)
+
+
+@functools.lru_cache(maxsize=8)
+def igrf_coefficients(year: float) -> tuple[np.ndarray, np.ndarray]:
+    """IGRF-14 Gauss coefficients ``g[n, m]``, ``h[n, m]`` (nT) at a decimal year, from pyIGRF14.
+
+    Degree 13 from 2000 on (10 before 1995, per IGRF); linear between the 5-year models,
+    secular variation after 2025. Arrays are read-only (cached).
+    """
+    from pyIGRF14.loadCoeffs import get_coeffs
+
+    if not 1900.0 <= year <= 2030.0:
+        raise ValueError(f"IGRF-14 covers 1900-2030, got the year {year}")
+    gl, hl = get_coeffs(float(year))
+    nmax = len(gl) - 1
+    g = np.zeros((nmax + 1, nmax + 1))
+    h = np.zeros((nmax + 1, nmax + 1))
+    for n in range(1, nmax + 1):
+        for m in range(n + 1):
+            g[n, m] = gl[n][m]
+            if m:
+                h[n, m] = hl[n][m]
+    g.setflags(write=False)
+    h.setflags(write=False)
+    return g, h
+
+
+class TruthRows(NamedTuple):
+    """Truth at some epochs (core frames): stamps (ns), ``r_e``, ``v_e`` (ECEF), ``c_b_e``
+    (``C_FRD^E``), ``omega_eb_b`` (FRD, rad/s)."""
+
+    stamps_ns: np.ndarray
+    r_e: np.ndarray
+    v_e: np.ndarray
+    c_b_e: np.ndarray
+    omega_eb_b: np.ndarray
+
+    def take(self, idx: np.ndarray) -> TruthRows:
+        return TruthRows(*(a[idx] for a in self))
+
+
+class AidingOutput(NamedTuple):
+    """Messages of one topic: field container and their release (bag log) times, ns."""
+
+    topic: str
+    fields: Any
+    log_ns: np.ndarray
+
+
+def _diag(values: np.ndarray, size: int, n: int) -> np.ndarray:
+    out = np.zeros((size, size))
+    out[np.arange(len(values)), np.arange(len(values))] = values
+    return np.broadcast_to(out.reshape(size * size), (n, size * size))
+
+
+class _Channel:
+    """One sensor: its epochs, its error model and the messages it builds."""
+
+    key = ""
+
+    def __init__(self, spec: Any, t0_ns: int, warn: Log) -> None:
+        self.spec = spec
+        self.period_ns = spec.period_ns
+        self.period_s = self.period_ns * 1e-9
+        self.first_epoch = -(-t0_ns // self.period_ns)  # ceil(t0 / P)
+        self.last_epoch = self.first_epoch - 1
+        self.warn = warn
+        self.model: Any = None
+
+    def feed(self, truth: TruthRows) -> list[AidingOutput]:
+        k = truth.stamps_ns // self.period_ns
+        is_epoch = (truth.stamps_ns % self.period_ns == 0) & (k >= self.first_epoch)
+        idx = np.flatnonzero(is_epoch)
+        out: list[list[AidingOutput]] = []
+        i = 0
+        while i < len(idx):
+            kk = int(k[idx[i]])
+            if kk <= self.last_epoch:
+                self.warn(f"{self.key}: epoch {kk} again or out of order; dropped")
+                i += 1
+                continue
+            self.model.skip(kk - self.last_epoch - 1)
+            j = i + 1
+            while j < len(idx) and k[idx[j]] == k[idx[j - 1]] + 1:
+                j += 1
+            out.append(self.measure(truth.take(idx[i:j])))
+            self.last_epoch = int(k[idx[j - 1]])
+            i = j
+        return _merge(out)
+
+    def measure(self, truth: TruthRows) -> list[AidingOutput]:
+        raise NotImplementedError
+
+    def release(self, last_truth_ns: int) -> list[AidingOutput]:
+        """Messages held back by a latency that are due at ``last_truth_ns``."""
+        return []
+
+
+def _merge(parts: list[list[AidingOutput]]) -> list[AidingOutput]:
+    """Outputs of several runs, one per topic (in first-seen order)."""
+    by_topic: dict[str, AidingOutput] = {}
+    for part in parts:
+        for o in part:
+            if not len(o.fields):
+                continue
+            prev = by_topic.get(o.topic)
+            by_topic[o.topic] = (
+                o
+                if prev is None
+                else AidingOutput(
+                    o.topic, prev.fields.append(o.fields), np.concatenate([prev.log_ns, o.log_ns])
+                )
+            )
+    return list(by_topic.values())
+
+
+class _Gnss(_Channel):
+    key = "gnss"
+
+    def __init__(self, spec: GnssSpec, t0_ns: int, warn: Log) -> None:
+        super().__init__(spec, t0_ns, warn)
+        errors = spec.errors()
+        self.model = GnssErrorModel(errors, self.period_s, spec.seed)
+        self.lever = np.array(spec.lever_arm_m, dtype=np.float64)
+        self.latency_ns = spec.latency_ns
+        self.outages = spec.outage_windows_ns(t0_ns)
+        pos = errors.position_variance
+        vel = errors.velocity_variance
+        self.pos_cov = np.diag([pos[1], pos[0], pos[2]]).reshape(9)  # ENU
+        twist = np.zeros(6)
+        twist[:3] = [vel[1], vel[0], vel[2]]
+        twist[3:] = NOT_MEASURED_VARIANCE
+        self.twist_cov = np.diag(twist).reshape(36)
+        self.pending: list[AidingOutput] = []
+
+    def measure(self, truth: TruthRows) -> list[AidingOutput]:
+        r_a, v_a = antenna_state(truth.r_e, truth.v_e, truth.c_b_e, truth.omega_eb_b, self.lever)
+        dpos, dvel = self.model.take(len(truth.stamps_ns))
+        meas = gnss_measurement(r_a, v_a, dpos, dvel)
+        keep = np.ones(len(truth.stamps_ns), dtype=bool)
+        for a, b in self.outages:
+            keep &= ~((truth.stamps_ns >= a) & (truth.stamps_ns < b))
+        sel = np.flatnonzero(keep)
+        stamps = truth.stamps_ns[sel]
+        n = len(sel)
+        spec: GnssSpec = self.spec
+        fix = navsatfix_fields_from_geodetic(
+            stamps,
+            meas.lat[sel],
+            meas.lon[sel],
+            meas.alt[sel],
+            spec.frame_id or "gnss",
+            position_covariance=self.pos_cov,
+            position_covariance_type=COVARIANCE_TYPE_DIAGONAL_KNOWN,
+            status=spec.status_code,
+            service=spec.service_code,
+        )
+        vel = TwistWithCovarianceStampedFields(
+            stamps_ns=stamps,
+            frame_id=spec.frame_id or "gnss",
+            linear=meas.v_enu[sel],
+            angular=np.zeros((n, 3)),
+            covariance=np.broadcast_to(self.twist_cov, (n, 36)),
+        )
+        log = stamps + self.latency_ns
+        self.pending += [
+            AidingOutput(AIDING_TOPICS["gnss_fix"], fix, log),
+            AidingOutput(AIDING_TOPICS["gnss_vel"], vel, log),
+        ]
+        return []
+
+    def release(self, last_truth_ns: int) -> list[AidingOutput]:
+        if not self.pending:
+            return []
+        merged = _merge([self.pending])
+        out, rest = [], []
+        for o in merged:
+            due = int(np.searchsorted(o.log_ns, last_truth_ns, side="right"))
+            out.append(AidingOutput(o.topic, o.fields.rows(0, due), o.log_ns[:due]))
+            if due < len(o.log_ns):
+                rest.append(AidingOutput(o.topic, o.fields.rows(due, len(o.log_ns)),
+                                         o.log_ns[due:]))  # fmt: skip
+        self.pending = rest
+        return [o for o in out if len(o.log_ns)]
+
+
+class _Baro(_Channel):
+    key = "barometer"
+
+    def __init__(self, spec: BarometerSpec, t0_ns: int, warn: Log) -> None:
+        super().__init__(spec, t0_ns, warn)
+        errors = spec.errors()
+        self.model = BaroErrorModel(errors, self.period_s, spec.seed)
+        self.lever = np.array(spec.lever_arm_m, dtype=np.float64)
+        self.variance = errors.variance
+
+    def measure(self, truth: TruthRows) -> list[AidingOutput]:
+        r_s, _ = antenna_state(truth.r_e, truth.v_e, truth.c_b_e, truth.omega_eb_b, self.lever)
+        _, _, alt = ecef_to_geodetic(r_s)
+        pressure = self.model.apply(icao_pressure(alt))
+        n = len(pressure)
+        fields = FluidPressureFields(
+            stamps_ns=truth.stamps_ns,
+            frame_id=self.spec.frame_id or "baro",
+            fluid_pressure=pressure,
+            variance=np.full(n, self.variance),
+        )
+        return [AidingOutput(AIDING_TOPICS["baro"], fields, truth.stamps_ns)]
+
+
+class _Mag(_Channel):
+    key = "magnetometer"
+
+    def __init__(self, spec: MagnetometerSpec, t0_ns: int, frame_id: str, warn: Log) -> None:
+        super().__init__(spec, t0_ns, warn)
+        errors = spec.errors()
+        self.model = MagnetometerErrorModel(errors, self.period_s, spec.seed)
+        self.frame_id = spec.frame_id or frame_id
+        self.g, self.h = igrf_coefficients(spec.year(t0_ns))
+        self.cov = np.diag(errors.variance).reshape(9)  # diagonal: the same in FLU
+
+    def model_field_body(self, truth: TruthRows) -> np.ndarray:
+        """Model field (T) in body FRD at the IMU: ``C_E^B C_N^E B^N``."""
+        lat, lon, _ = ecef_to_geodetic(truth.r_e)
+        b_ned = igrf_field_ned(truth.r_e, lat, self.g, self.h) * 1e-9
+        b_e = mat_vec(dcm_ned_to_ecef(lat, lon), b_ned)
+        return mat_t_vec(truth.c_b_e, b_e)
+
+    def measure(self, truth: TruthRows) -> list[AidingOutput]:
+        measured = self.model.apply(self.model_field_body(truth))
+        n = len(measured)
+        fields = MagneticFieldFields(
+            stamps_ns=truth.stamps_ns,
+            frame_id=self.frame_id,
+            magnetic_field=frd_to_flu(measured),
+            magnetic_field_covariance=np.broadcast_to(self.cov, (n, 9)),
+        )
+        return [AidingOutput(AIDING_TOPICS["mag"], fields, truth.stamps_ns)]
+
+
+class _Wheel(_Channel):
+    key = "wheel_odometer"
+
+    def __init__(self, spec: WheelOdometerSpec, t0_ns: int, warn: Log) -> None:
+        super().__init__(spec, t0_ns, warn)
+        errors = spec.errors()
+        self.model = OdometerErrorModel(errors, self.period_s, spec.seed)
+        self.lever = np.array(spec.lever_arm_m, dtype=np.float64)
+        nhc = spec.nhc_sigma_mps**2
+        diag = [errors.variance(self.period_s), nhc, nhc] + [NOT_MEASURED_VARIANCE] * 3
+        self.cov = np.diag(diag).reshape(36)
+
+    def measure(self, truth: TruthRows) -> list[AidingOutput]:
+        v_c = contact_point_velocity(truth.v_e, truth.c_b_e, truth.omega_eb_b, self.lever)
+        speed = self.model.apply(v_c[:, 0])
+        n = len(speed)
+        linear = np.zeros((n, 3))
+        linear[:, 0] = speed  # FLU x = FRD x; y, z = 0: the non-holonomic constraint
+        fields = TwistWithCovarianceStampedFields(
+            stamps_ns=truth.stamps_ns,
+            frame_id=self.spec.frame_id or "wheel",
+            linear=linear,
+            angular=np.zeros((n, 3)),
+            covariance=np.broadcast_to(self.cov, (n, 36)),
+        )
+        return [AidingOutput(AIDING_TOPICS["wheel"], fields, truth.stamps_ns)]
+
+
+class AidingStream:
+    """Reference truth Odometry in (any chunking), aiding messages out; no rclpy.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Supplies the start time, the frames and (unless ``spec`` is given) the ``aiding``
+        section.
+    spec : AidingSpec, optional
+        The section to simulate (default: the scenario's).
+    truth_topic : str, optional
+        The Odometry truth topic (default ``recording.topics.reference_odom``).
+    warn : callable
+        Logger for dropped (repeated or out-of-order) truth messages.
+
+    Attributes
+    ----------
+    topics : list of str
+        The topics produced, in output order.
+    published : dict
+        Messages produced per topic.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        spec: AidingSpec | None = None,
+        *,
+        truth_topic: str | None = None,
+        warn: Log = _ignore,
+    ) -> None:
+        spec = spec if spec is not None else aiding_spec(scenario)
+        if spec is None:
+            raise ScenarioError("aiding", "missing: the scenario defines no aiding sensors")
+        self.spec = spec
+        self.truth_topic = truth_topic or scenario.recording.topics["reference_odom"]
+        t0 = scenario.start_time_ns
+        body = scenario.recording.frames["reference_imu"]
+        self.channels: list[_Channel] = []
+        sensors = spec.sensors()
+        if "gnss" in sensors:
+            self.channels.append(_Gnss(spec.gnss, t0, warn))  # type: ignore[arg-type]
+        if "barometer" in sensors:
+            self.channels.append(_Baro(spec.barometer, t0, warn))  # type: ignore[arg-type]
+        if "magnetometer" in sensors:
+            self.channels.append(_Mag(spec.magnetometer, t0, body, warn))  # type: ignore[arg-type]
+        if "wheel_odometer" in sensors:
+            self.channels.append(_Wheel(spec.wheel_odometer, t0, warn))  # type: ignore[arg-type]
+        self.topics = spec.topics()
+        self.published = dict.fromkeys(self.topics, 0)
+        self.last_truth_ns: int | None = None
+        self.warn = warn
+
+    def feed_fields(self, odom: OdometryFields) -> list[AidingOutput]:
+        """The aiding messages due after the truth messages ``odom`` (consecutive stamps).
+
+        Truth stamps not after the last one fed are dropped (logged).
+        """
+        stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
+        if np.any(np.diff(stamps) <= 0):
+            raise ValueError(f"{self.truth_topic}: truth stamps must increase within a chunk")
+        if self.last_truth_ns is not None and len(stamps) and stamps[0] <= self.last_truth_ns:
+            first = int(np.searchsorted(stamps, self.last_truth_ns, side="right"))
+            self.warn(
+                f"{self.truth_topic}: {first} truth message(s) not after the last one; dropped"
+            )
+            odom, stamps = odom.rows(first, len(stamps)), stamps[first:]
+        if not len(stamps):
+            return []
+        st = odometry_state(odom)
+        truth = TruthRows(st.stamps_ns, st.r_e, st.v_e, st.c_b_e, st.omega_eb_b)
+        self.last_truth_ns = int(stamps[-1])
+        parts = []
+        for ch in self.channels:
+            parts.append(ch.feed(truth))
+            parts.append(ch.release(self.last_truth_ns))
+        out = _merge(parts)
+        order = {t: i for i, t in enumerate(self.topics)}
+        out.sort(key=lambda o: order[o.topic])
+        for o in out:
+            self.published[o.topic] += len(o.log_ns)
+        return out
+
+    def feed(self, odom: OdometryFields) -> list[Batch]:
+        """:meth:`feed_fields`, serialized: one :class:`Batch` per topic (log time = release)."""
+        return [
+            Batch(o.topic, cdr.msgtype_of(o.fields), o.log_ns, cdr.serialize(o.fields))
+            for o in self.feed_fields(odom)
+        ]
+
+    def on_payloads(self, payloads: list[bytes | memoryview]) -> list[Batch]:
+        """Serialized truth Odometry messages in, serialized aiding batches out (the node)."""
+        if not payloads:
+            return []
+        odom = cdr.deserialize(cdr.ODOMETRY, payloads)
+        return self.feed(odom)  # type: ignore[arg-type]
+
+    def feed_batches(self, batches: list[Batch]) -> list[Batch]:
+        """``generate``'s path: the aiding batches of the truth topic's batch among ``batches``."""
+        out: list[Batch] = []
+        for b in batches:
+            if b.topic == self.truth_topic and len(b.payloads):
+                out += self.on_payloads(list(b.payloads))
+        return out
+
+
+def epochs_in(start_ns: int, stop_ns: int, period_ns: int) -> int:
+    """Number of epochs (multiples of ``period_ns``) in ``[start_ns, stop_ns]``."""
+    if stop_ns < start_ns:
+        return 0
+    return stop_ns // period_ns - (-(-start_ns // period_ns)) + 1
