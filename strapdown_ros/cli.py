@@ -180,7 +180,7 @@ def _validate(args: argparse.Namespace) -> int:
     natural = natural_duration(scenario, trajectory)
     duration = output_cycles(scenario, trajectory) * scenario.period_ns * 1e-9
     print(
-        f"{scenario.path}: valid; {scenario.trajectory['kind']} trajectory of {natural:g} s, "
+        f"{scenario.path}: valid; {scenario.trajectory.kind} trajectory of {natural:g} s, "
         f"{duration:g} s at {scenario.rate_hz:g} Hz (oversample {scenario.oversample}), "
         f"gravity {scenario.gravity_model}"
     )

@@ -5,13 +5,15 @@ import math
 import numpy as np
 import pytest
 
+from strapdown_ros.config import ScenarioError, parse_scenario
 from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef
 from strapdown_ros.core.exact_update import one_step_residuals
 from strapdown_ros.core.gravity import gravitation
 from strapdown_ros.core.method2 import method2
 from strapdown_ros.core.rotations import rotvec_from_dcm
 from strapdown_ros.core.trajectory.base import local_to_e0
-from strapdown_ros.core.trajectory.coning import ConingTrajectory
+from strapdown_ros.core.trajectory.coning import ConingTrajectory, lowest_altitude
+from strapdown_ros.stages.reference import build_trajectory
 
 INITIAL = {
     "latitude_deg": -23.2,
@@ -22,6 +24,14 @@ INITIAL = {
 }
 
 
+def build(initial, coning) -> ConingTrajectory:
+    """The trajectory of a scenario's ``initial`` and ``trajectory.coning`` (typed model)."""
+    scenario = parse_scenario(
+        {"rate_hz": 100, "initial": initial, "trajectory": {"kind": "coning", "coning": coning}}
+    )
+    return build_trajectory(scenario)
+
+
 def fd_body_rate(traj, t, d=1e-4):
     """ω_b^bl from the attitude: rotvec(C(t-d)ᵀ C(t+d)) / 2d (error O(d² |ω|³))."""
     c_minus = traj.attitude(t - d)
@@ -30,7 +40,7 @@ def fd_body_rate(traj, t, d=1e-4):
 
 
 def test_paper_defaults():
-    traj = ConingTrajectory.from_config(INITIAL, {})
+    traj = build(INITIAL, {})
     assert traj.theta == math.pi / 2 and traj.precession_rate == math.pi / 6
     assert traj.duration == 300.0 and traj.cm_motion == "rest"
 
@@ -45,7 +55,7 @@ def test_paper_defaults():
 )
 def test_body_rate_is_the_papers(params, rph):
     """Numerical derivative of the attitude equals §6's ω_b^bl for any initial attitude."""
-    traj = ConingTrajectory.from_config(dict(INITIAL, attitude_rph_deg=rph), params)
+    traj = build(dict(INITIAL, attitude_rph_deg=rph), params)
     t = np.linspace(0.001, traj.duration - 0.001, 997)
     measured = fd_body_rate(traj, t)
     w, th = traj.precession_rate, traj.theta
@@ -67,7 +77,7 @@ def test_body_rate_is_the_papers(params, rph):
 
 
 def test_body_z_axis_precesses_about_the_vertical():
-    traj = ConingTrajectory.from_config(INITIAL, {"theta_deg": 20.0})
+    traj = build(INITIAL, {"theta_deg": 20.0})
     t = np.linspace(0.0, 12.0, 49)  # one precession period 2π/Ω_p = 12 s
     z_b = traj.attitude(t)[:, :, 2]  # body z axis in NED
     np.testing.assert_allclose(z_b[:, 2], math.cos(math.radians(20.0)), atol=1e-15)
@@ -76,14 +86,14 @@ def test_body_z_axis_precesses_about_the_vertical():
 
 
 def test_cm_at_rest():
-    traj = ConingTrajectory.from_config(INITIAL, {"cm_motion": "rest"})
+    traj = build(INITIAL, {"cm_motion": "rest"})
     lt = traj.local_truth(np.linspace(0.0, 300.0, 3001))
     assert np.all(lt.lat == math.radians(-23.2)) and np.all(lt.lon == math.radians(-45.9))
     assert np.all(lt.alt == 600.0) and np.all(lt.v_ned == 0.0)
 
 
 def test_sinusoid_profile_matches_section_6():
-    traj = ConingTrajectory.from_config(INITIAL, {"cm_motion": "sinusoids"})
+    traj = build(INITIAL, {"cm_motion": "sinusoids"})
     t = np.linspace(0.0, 300.0, 1201)
     lt = traj.local_truth(t)
     np.testing.assert_allclose(lt.v_ned[:, 0], 200 * np.sin(2 * np.pi * t / 1200), atol=1e-12)
@@ -103,7 +113,7 @@ def test_sinusoid_profile_matches_section_6():
 
 
 def test_sinusoid_velocity_is_derivative_of_position():
-    traj = ConingTrajectory.from_config(INITIAL, {"cm_motion": "sinusoids"})
+    traj = build(INITIAL, {"cm_motion": "sinusoids"})
     t = np.linspace(1.0, 299.0, 1500)
     h = 0.01
 
@@ -119,7 +129,7 @@ def test_sinusoid_velocity_is_derivative_of_position():
 
 def test_regenerated_stream_is_exact():
     """The CM truth feeds Method 2 (zero offsets) into a stream that meets SPEC §3."""
-    traj = ConingTrajectory.from_config(INITIAL, {"cm_motion": "sinusoids", "duration_s": 4.0})
+    traj = build(INITIAL, {"cm_motion": "sinusoids", "duration_s": 4.0})
     period = 0.01
     truth = local_to_e0(traj.local_truth(np.arange(401) * period))
     sol = method2(truth.c_b_e0, truth.r_e0, truth.v_e0, period, lambda r: gravitation(r, "j2"))
@@ -151,10 +161,37 @@ def test_regenerated_stream_is_exact():
     ],
 )
 def test_bad_values_name_the_key(params, key):
-    with pytest.raises(ValueError, match=key):
-        ConingTrajectory.from_config(INITIAL, params)
+    with pytest.raises(ScenarioError) as info:
+        build(INITIAL, params)
+    assert info.value.key.startswith(f"trajectory.coning.{key}"), str(info.value)
 
 
 def test_moving_initial_velocity_is_rejected():
-    with pytest.raises(ValueError, match="initial.velocity_ned_mps"):
-        ConingTrajectory.from_config(dict(INITIAL, velocity_ned_mps=[1, 0, 0]), {})
+    with pytest.raises(ScenarioError) as info:
+        build(dict(INITIAL, velocity_ned_mps=[1, 0, 0]), {})
+    assert info.value.key == "initial.velocity_ned_mps"
+
+
+def test_latitude_limit_of_the_coning_kind():
+    """The CM path integrates the geodetic rates: |latitude| <= 89.9° for this kind."""
+    with pytest.raises(ScenarioError) as info:
+        build(dict(INITIAL, latitude_deg=-89.95), {})
+    assert info.value.key == "initial.latitude_deg" and "89.9" in info.value.problem
+    assert build(dict(INITIAL, latitude_deg=-89.85), {}).lat0 == math.radians(-89.85)
+
+
+def test_lowest_altitude():
+    """h0 - A_D P_D/(2π) (1 - cos(2π t/P_D)): lowest at P_D/2, or at the end if shorter."""
+    assert lowest_altitude(600.0, 5.0, 300.0, 300.0) == pytest.approx(600 - 5 * 300 / math.pi)
+    assert lowest_altitude(600.0, 5.0, 300.0, 75.0) == pytest.approx(600 - 5 * 300 / (2 * math.pi))
+    assert lowest_altitude(600.0, -5.0, 300.0, 300.0) == 600.0
+
+
+def test_defaults_of_the_model():
+    spec = parse_scenario(
+        {"rate_hz": 100, "initial": INITIAL, "trajectory": {"kind": "coning"}}
+    ).trajectory
+    assert spec.coning.theta == math.pi / 2 and spec.coning.precession_rate == math.pi / 6
+    assert spec.coning.cm_motion == "rest" and spec.natural_duration == 300.0
+    assert spec.coning.velocity_amplitude_ned_mps == (200.0, 150.0, 5.0)
+    assert spec.coning.velocity_period_ned_s == (1200.0, 1200.0, 300.0)

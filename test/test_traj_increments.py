@@ -1,10 +1,13 @@
 """Savage's constant-rate segments (the ``increments`` kind): exactness and a physical check."""
 
 import math
+import re
 
 import numpy as np
 import pytest
 
+from strapdown_ros.config import ScenarioError, parse_scenario
+from strapdown_ros.config.trajectory import core_initial
 from strapdown_ros.core.earth import (
     OMEGA_IE_VEC,
     dcm_ned_to_ecef,
@@ -14,7 +17,12 @@ from strapdown_ros.core.earth import (
 from strapdown_ros.core.exact_update import one_step_residuals
 from strapdown_ros.core.gravity import gravitation
 from strapdown_ros.core.rotations import dcm_from_euler, rotation_angle
-from strapdown_ros.core.trajectory.increments import generate_increments_stream
+from strapdown_ros.core.trajectory.base import TrajectoryError
+from strapdown_ros.core.trajectory.increments import (
+    IncrementSegment,
+    generate_increments_stream,
+    whole_cycles,
+)
 
 INITIAL = {
     "latitude_deg": 45.0,
@@ -24,6 +32,25 @@ INITIAL = {
     "attitude_rph_deg": [10.0, -5.0, 30.0],
 }
 
+
+def stream(initial, segments, rate_hz, t0_ns, gravity_model="j2"):
+    """The stream of a scenario's ``initial`` and ``trajectory.segments`` (typed model)."""
+    scenario = parse_scenario(
+        {
+            "rate_hz": rate_hz,
+            "initial": initial,
+            "trajectory": {"kind": "increments", "segments": segments},
+        }
+    )
+    return generate_increments_stream(
+        *core_initial(scenario.initial),
+        scenario.trajectory.core_segments(),
+        scenario.period_ns,
+        t0_ns,
+        gravity_model=gravity_model,
+    )
+
+
 MANEUVER = [
     {"duration_s": 0.5, "omega_dps": [0, 0, 0], "specific_force_mps2": [0, 0, -9.8]},
     {"duration_s": 1.0, "omega_dps": [30, -20, 90], "specific_force_mps2": [5, 1, -12]},
@@ -32,7 +59,7 @@ MANEUVER = [
 
 
 def test_increments_are_constant_rate_times_period():
-    s = generate_increments_stream(INITIAL, MANEUVER, 200.0, 1_700_000_000_000_000_000)
+    s = stream(INITIAL, MANEUVER, 200.0, 1_700_000_000_000_000_000)
     assert s.period_ns == 5_000_000 and s.cycles == 100 + 200 + 50
     assert s.t0_ns == 1_700_000_000_000_000_000 and s.gravity_model == "j2"
     np.testing.assert_allclose(s.dalpha[150], np.radians([30, -20, 90]) * 0.005, rtol=1e-15)
@@ -42,7 +69,7 @@ def test_increments_are_constant_rate_times_period():
 @pytest.mark.parametrize("model", ["j2", "spherical"])
 def test_stream_meets_the_exactness_rule(model):
     """SPEC §3 one-step residuals with gravity of the stream's model at the published R."""
-    s = generate_increments_stream(INITIAL, MANEUVER, 200.0, 0, gravity_model=model)
+    s = stream(INITIAL, MANEUVER, 200.0, 0, gravity_model=model)
     assert s.gravity_model == model
     res = one_step_residuals(
         s.c_b_e0, s.v_e0, s.r_e0, s.dalpha, s.dv, gravitation(s.r_e0, model), s.period
@@ -57,9 +84,7 @@ def test_stream_meets_the_exactness_rule(model):
 
 
 def test_initial_state_is_the_scenario_initial():
-    s = generate_increments_stream(
-        dict(INITIAL, velocity_ned_mps=[10.0, -5.0, 1.0]), MANEUVER[:1], 100.0, 0
-    )
+    s = stream(dict(INITIAL, velocity_ned_mps=[10.0, -5.0, 1.0]), MANEUVER[:1], 100.0, 0)
     lat, lon = math.radians(45.0), math.radians(7.0)
     r_e, v_e, c_b_e = e0_state_to_ecef(0.0, s.r_e0[0], s.v_e0[0], s.c_b_e0[0])
     np.testing.assert_allclose(r_e, geodetic_to_ecef(lat, lon, 300.0), atol=1e-9)
@@ -93,7 +118,7 @@ def test_stationary_body_on_the_rotating_earth_stays_put():
             "specific_force_mps2": f_b.tolist(),
         }
     ]
-    s = generate_increments_stream(INITIAL, segs, 100.0, 0)
+    s = stream(INITIAL, segs, 100.0, 0)
     re, ve, cbe = e0_state_to_ecef(s.t, s.r_e0, s.v_e0, s.c_b_e0)
     assert np.linalg.norm(re - r_e, axis=-1).max() < 1e-6
     assert np.linalg.norm(ve, axis=-1).max() < 1e-8
@@ -105,19 +130,42 @@ def test_stationary_body_on_the_rotating_earth_stays_put():
 @pytest.mark.parametrize(
     ("segments", "rate", "key"),
     [
-        ([{"duration_s": 0.015}], 100.0, r"segments\[0\].duration_s"),
-        ([{"duration_s": 1.0}, {"duration_s": 0}], 100.0, r"segments\[1\].duration_s"),
-        ([{"duration_s": 1.0, "omega_dps": [1, 2]}], 100.0, r"segments\[0\].omega_dps"),
+        ([{"duration_s": 0.015}], 100.0, r"trajectory\.segments\[0\].duration_s"),
+        ([{"duration_s": 1.0}, {"duration_s": 0}], 100.0, r"trajectory\.segments\[1\].duration_s"),
+        ([{"duration_s": 1.0, "omega_dps": [1, 2]}], 100.0, r"trajectory\.segments\[0\].omega_dps"),
         (
             [{"duration_s": 1.0, "specific_force_mps2": [1, 2, "x"]}],
             100.0,
-            r"segments\[0\].specific_force_mps2\[2\]",
+            r"trajectory\.segments\[0\].specific_force_mps2\[2\]",
         ),
-        ([{"duration_s": 1.0, "accel_mps2": 1}], 100.0, r"segments\[0\].accel_mps2"),
+        ([{"duration_s": 1.0, "accel_mps2": 1}], 100.0, r"trajectory\.segments\[0\].accel_mps2"),
         ([{"duration_s": 1.0}], 300.0, "rate_hz"),
-        ([], 100.0, "segments"),
+        ([], 100.0, r"trajectory\.segments"),
     ],
 )
 def test_bad_values_name_the_key(segments, rate, key):
-    with pytest.raises(ValueError, match=key):
-        generate_increments_stream(INITIAL, segments, rate, 0)
+    with pytest.raises(ScenarioError) as info:
+        stream(INITIAL, segments, rate, 0)
+    assert re.fullmatch(key, info.value.key), str(info.value)
+
+
+def test_whole_cycles_follow_the_generation_period():
+    """A segment must be a whole number of T / oversample cycles (a cross-field rule)."""
+    doc = {
+        "rate_hz": 100,
+        "initial": INITIAL,
+        "trajectory": {"kind": "increments", "segments": [{"duration_s": 0.015}]},
+    }
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(doc)
+    assert info.value.key == "trajectory.segments[0].duration_s"
+    assert "not a whole number of cycles of 0.01 s" in info.value.problem
+    parse_scenario({**doc, "oversample": 2})  # 5 ms generation cycles: 3 of them
+    assert whole_cycles(0.015, 5_000_000) == 3 and whole_cycles(0.015, 10_000_000) is None
+
+
+def test_core_rejects_a_partial_cycle_with_its_location():
+    segments = [IncrementSegment(duration=1.0), IncrementSegment(duration=0.0125)]
+    with pytest.raises(TrajectoryError) as info:
+        generate_increments_stream(0.7, 0.1, 0.0, [0, 0, 0], [0, 0, 0], segments, 10_000_000, 0)
+    assert info.value.where == ("segments", 1, "duration")

@@ -6,10 +6,15 @@ Truth used throughout: a smooth curve near the Earth's surface (ECEF, 45°N 7°E
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
+import yaml
 from scipy.integrate import solve_ivp
 
+from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.core.earth import (
     dcm_e0_to_ecef,
     dcm_ned_to_ecef,
@@ -23,7 +28,7 @@ from strapdown_ros.core.rotations import (
     quat_multiply,
     rotation_angle,
 )
-from strapdown_ros.core.trajectory import local_to_e0
+from strapdown_ros.core.trajectory import TrajectoryError, local_to_e0
 from strapdown_ros.core.trajectory.giribet import (
     fit_spline,
     knot_vector,
@@ -34,10 +39,10 @@ from strapdown_ros.core.trajectory.samples import (
     SamplesTrajectory,
     SplineOptions,
     Weights,
-    from_config,
-    load_samples_csv,
     samples_from_arrays,
 )
+from strapdown_ros.inputs.samples import SamplesInputError, load_samples_csv
+from strapdown_ros.stages.reference import build_trajectory
 
 T = 120.0
 LAT0, LON0 = np.radians(45.0), np.radians(7.0)
@@ -396,6 +401,20 @@ def _write_csv(path, t, header_extra=True):
             fh.write(",".join(f"{x:.12f}" for x in row) + (",x" if header_extra else "") + "\n")
 
 
+def from_config(trajectory: dict, base: Path) -> SamplesTrajectory:
+    """Build the ``trajectory`` section of a scenario file written in ``base``."""
+    path = base / "scenario.yaml"
+    path.write_text(yaml.safe_dump({"rate_hz": 100, "trajectory": trajectory}))
+    return build_trajectory(load_scenario(path))
+
+
+def key_of(trajectory: dict, base: Path) -> str:
+    """The message of the error the scenario's trajectory section gives."""
+    with pytest.raises(ScenarioError) as info:
+        from_config(trajectory, base)
+    return str(info.value)
+
+
 def test_csv_round_trip_and_config(tmp_path, grid):
     t = np.arange(0.0, T + 1e-9, 1.0)
     _write_csv(tmp_path / "s.csv", t)
@@ -412,6 +431,8 @@ def test_csv_round_trip_and_config(tmp_path, grid):
         "weights": {"position": 1.0, "velocity": 100.0, "attitude": 1e4},
     }
     traj = from_config(cfg, tmp_path)
+    assert traj.options.position.knots == 6.0 and traj.options.weights.attitude == 1e4
+    assert traj.options.attitude.breaks == ((60.0, 1),) and traj.options.position.degree == 3
     assert 60.0 in traj.position_breakpoints and 60.0 in traj.attitude_breakpoints
     lt = traj.local_truth(grid)
     perr = rms(geodetic_to_ecef(lt.lat, lt.lon, lt.alt) - truth_r(grid))
@@ -457,35 +478,74 @@ def test_bad_inputs_name_the_key(tmp_path):
         SamplesTrajectory.from_arrays(
             t, r_ecef=r, options=FitOptions(position=SplineOptions(knots=5.0, continuity=0))
         )
-    with pytest.raises(ValueError, match="attitude.breaks: t_s=30.0 outside"):
+    with pytest.raises(TrajectoryError, match=r"attitude.breaks\[0\]: t_s=30.0 outside") as info:
         SamplesTrajectory.from_arrays(
             t, r_ecef=r, options=FitOptions(attitude=SplineOptions(breaks=[(30.0, 1)]))
         )
+    assert info.value.where == ("attitude", "breaks", 0)
     # CSV: missing column, NaN cell, non-increasing time
     path = tmp_path / "bad.csv"
     path.write_text("t,lat_deg,lon_deg\n0,45,7\n1,45,7\n")
-    with pytest.raises(ValueError, match="missing column.*alt_m"):
+    with pytest.raises(SamplesInputError, match="missing column.*alt_m"):
         load_samples_csv(path)
     path.write_text("t,x_m,y_m,z_m\n0,1,2,3\n1,1,nan,3\n")
-    with pytest.raises(ValueError, match="column 'y_m', data row 2"):
+    with pytest.raises(SamplesInputError, match="column 'y_m', data row 2"):
         load_samples_csv(path)
     path.write_text("time_s,x_m,y_m,z_m\n0,1,2,3\n0,1,2,3\n")
-    with pytest.raises(ValueError, match="column time_s: times must be strictly increasing"):
+    with pytest.raises(
+        SamplesInputError, match="column time_s: times must be strictly increasing"
+    ) as err:
         load_samples_csv(path)
+    assert err.value.key == "file"
     path.write_text("t,x_m,y_m,z_m,roll_deg\n0,1,2,3,0\n1,1,2,3,0\n")
-    with pytest.raises(ValueError, match="pitch_deg, heading_deg"):
+    with pytest.raises(SamplesInputError, match="pitch_deg, heading_deg"):
         load_samples_csv(path)
-    # config
+
+
+@pytest.mark.parametrize(
+    ("trajectory", "message"),
+    [
+        ({"knotz": 2}, r"trajectory.knotz: unknown key \(did you mean 'knots'\?\)"),
+        ({"file": None}, "trajectory.file: is required"),
+        ({"file": "nope.csv"}, "trajectory.file: '.*nope.csv' does not exist"),
+        ({"weights": {"speed": 1}}, "trajectory.weights.speed: unknown key"),
+        ({"weights": {"rate": -1}}, "trajectory.weights.rate: must be >= 0"),
+        ({"degree": 2.5}, "trajectory.degree: must be an integer, got float 2.5"),
+        ({"degree": {"attitude": 0}}, "trajectory.degree.attitude: must be >= 1"),
+        ({"degree": 1}, "trajectory.degree: must be >= 2 for the position spline"),
+        ({"knots": 0}, "trajectory.knots: must be > 0"),
+        ({"knots": {"position": [0, "a"]}}, r"trajectory.knots.position\[1\]: must be a number"),
+        ({"continuity": 3}, r"trajectory.continuity: .* position spline must be in \[1, "),
+        ({"continuity": {"attitude": -1}}, "trajectory.continuity.attitude: .* in \\[0, "),
+        ({"breaks": [{"t_s": 5}]}, r"trajectory.breaks\[0\].continuity: is required"),
+        ({"breaks": {"attitude": [{"t_s": 5, "continuity": 1, "c": 1}]}},
+         r"trajectory.breaks.attitude\[0\].c: unknown key"),
+        ({"columns": {"lat": "latitude"}}, "trajectory.columns.lat: unknown canonical column"),
+        ({"columns": {"lat_deg": 3}}, "trajectory.columns.lat_deg: must be a string"),
+        ({"attitude_method": "guess"}, "trajectory.attitude_method: must be one of"),
+        ({"rate_frame": "body"}, "trajectory.rate_frame: must be one of"),
+        ({"q_step": -1}, "trajectory.q_step: must be > 0"),
+        ({"bag": "b"}, "trajectory.bag: give either file or bag, not both"),
+        ({"topic": "/odom"}, "trajectory.topic: is only used with bag"),
+        # found while fitting: the key of the option, the spline named
+        ({"knots": [0, 5, 50]}, "trajectory.knots: position spline: breakpoints .*outside"),
+        ({"knots": {"position": 5.0, "attitude": 0.5}},
+         r"trajectory.knots.attitude: interval .* holds"),
+        ({"breaks": {"attitude": [{"t_s": 30.0, "continuity": 1}]}},
+         r"trajectory.breaks.attitude\[0\]: t_s=30.0 outside the data span"),
+    ],
+)  # fmt: skip
+def test_bad_trajectory_section_names_the_key(tmp_path, trajectory, message):
+    t = np.arange(0.0, 20.0 + 1e-9, 1.0)
     _write_csv(tmp_path / "ok.csv", t, header_extra=False)
-    with pytest.raises(ValueError, match="trajectory.knotz: unknown key"):
-        from_config({"kind": "samples", "file": "ok.csv", "knotz": 2}, tmp_path)
-    with pytest.raises(ValueError, match="trajectory.file: missing"):
-        from_config({"kind": "samples"}, tmp_path)
-    with pytest.raises(ValueError, match="trajectory.file: .*does not exist"):
-        from_config({"kind": "samples", "file": "nope.csv"}, tmp_path)
-    with pytest.raises(ValueError, match="trajectory.weights.speed: unknown"):
-        from_config({"file": "ok.csv", "weights": {"speed": 1}}, tmp_path)
-    with pytest.raises(ValueError, match="trajectory.degree: expected an integer"):
-        from_config({"file": "ok.csv", "degree": 2.5}, tmp_path)
-    with pytest.raises(ValueError, match="trajectory: .*position.knots"):
-        from_config({"file": "ok.csv", "knots": [0, 5, 50]}, tmp_path)
+    doc = {"kind": "samples", "file": "ok.csv", **trajectory}
+    if doc["file"] is None:
+        del doc["file"]
+    assert re.match(message, key_of(doc, tmp_path)), key_of(doc, tmp_path)
+
+
+def test_samples_model_defaults(tmp_path):
+    t = np.arange(0.0, 20.0 + 1e-9, 1.0)
+    _write_csv(tmp_path / "ok.csv", t, header_extra=False)
+    traj = from_config({"kind": "samples", "file": "ok.csv"}, tmp_path)
+    assert traj.options == FitOptions()  # the model's defaults are the core's

@@ -7,9 +7,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from strapdown_ros.config import ScenarioError, parse_scenario
 from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef, radii
 from strapdown_ros.core.rotations import euler_from_dcm, vee
-from strapdown_ros.core.trajectory.segments import LatLonPath, SegmentsTrajectory
+from strapdown_ros.core.trajectory.base import TrajectoryError
+from strapdown_ros.core.trajectory.latlon_path import LatLonPath
+from strapdown_ros.core.trajectory.segments import Segment, SegmentsTrajectory
+from strapdown_ros.stages.reference import build_trajectory
 
 INITIAL = {
     "latitude_deg": 45.0,
@@ -37,9 +41,21 @@ MIXED = [
 ]
 
 
+def build(initial, segments) -> SegmentsTrajectory:
+    """The trajectory of a scenario's ``initial`` and ``trajectory.segments`` (typed model)."""
+    scenario = parse_scenario(
+        {
+            "rate_hz": 100,
+            "initial": initial,
+            "trajectory": {"kind": "segments", "segments": segments},
+        }
+    )
+    return build_trajectory(scenario)
+
+
 @pytest.fixture(scope="module")
 def mixed():
-    return SegmentsTrajectory.from_config(INITIAL, MIXED)
+    return build(INITIAL, MIXED)
 
 
 def boundaries(durations):
@@ -73,11 +89,11 @@ def test_zero_transition_is_a_step():
         {"duration_s": 5, "accel_mps2": 2, "transition_s": 0},
         {"duration_s": 5, "accel_mps2": 2, "heading_rate_dps": 10, "transition_s": 0},
     ]
-    traj = SegmentsTrajectory.from_config(INITIAL, segs)
+    traj = build(INITIAL, segs)
     assert accel_jump(traj, 2.5) < 1e-6  # inside a segment: constant acceleration
     assert accel_jump(traj, 5.0) == pytest.approx(10.0 * math.radians(10), rel=1e-3)
     assert rate_jump(traj, 5.0) == pytest.approx(math.radians(10), rel=1e-3)
-    smooth = SegmentsTrajectory.from_config(INITIAL, [dict(s, transition_s=1.0) for s in segs])
+    smooth = build(INITIAL, [dict(s, transition_s=1.0) for s in segs])
     assert accel_jump(smooth, 5.0) < 1e-3
     assert rate_jump(smooth, 5.0) < 1e-5
 
@@ -93,7 +109,7 @@ def test_ninety_degree_turn():
         ],
     )
     segs = [{"duration_s": 10, "heading_rate_dps": 9}, {"duration_s": 5}]
-    traj = SegmentsTrajectory.from_config(init, segs)
+    traj = build(init, segs)
     end = traj.local_truth(np.array([15.0]))
     _, _, heading = euler_from_dcm(end.c_b_n[0])
     assert math.degrees(heading) == pytest.approx(120.0, abs=1e-9)
@@ -105,7 +121,7 @@ def test_ninety_degree_turn():
 
 def test_speed_after_acceleration():
     segs = [{"duration_s": 20, "accel_mps2": 2.5}, {"duration_s": 10}]
-    traj = SegmentsTrajectory.from_config(INITIAL, segs)
+    traj = build(INITIAL, segs)
     lt = traj.local_truth(np.array([30.0]))
     assert np.linalg.norm(lt.v_ned[0]) == pytest.approx(50.0, abs=1e-9)
     assert math.degrees(math.atan2(lt.v_ned[0, 1], lt.v_ned[0, 0])) == pytest.approx(30.0)
@@ -113,7 +129,7 @@ def test_speed_after_acceleration():
 
 def test_climb_reaches_target():
     segs = [{"duration_s": 20, "climb_rate_mps": 6, "transition_s": 8}, {"duration_s": 10}]
-    traj = SegmentsTrajectory.from_config(dict(INITIAL, velocity_ned_mps=[50, 0, 0]), segs)
+    traj = build(dict(INITIAL, velocity_ned_mps=[50, 0, 0]), segs)
     t = np.array([4.0, 8.0, 15.0, 30.0])
     lt = traj.local_truth(t)
     assert 0.0 < -lt.v_ned[0, 2] < 6.0
@@ -145,7 +161,7 @@ def test_velocity_is_derivative_of_position(mixed):
 
 def test_vectorized_evaluation_is_fast(mixed):
     start = time.perf_counter()
-    SegmentsTrajectory.from_config(INITIAL, MIXED)
+    build(INITIAL, MIXED)
     assert time.perf_counter() - start < 0.25  # ≈ 0.01 s
     t = np.linspace(0.0, mixed.duration, 120_000)
     start = time.perf_counter()
@@ -238,7 +254,7 @@ def test_latlon_against_dop853(case):
     offline), the path is within 0.5 ulp of latitude (3.5e-10 m over the 600 s default
     scenario, 6.3e-10 m for FAST_TURNS) while DOP853 drifts to 1.6e-9 m and 2.0e-9 m.
     """
-    traj = SegmentsTrajectory.from_config(*case)
+    traj = build(*case)
     t = np.concatenate([np.linspace(0.0, traj.duration, 401), piece_breaks(traj)])
     ref = dop853_latlon(traj, t)
     lt = traj.local_truth(t)
@@ -253,7 +269,7 @@ def test_latlon_against_dop853(case):
 )
 def test_path_derivative_is_the_geodetic_rate(case):
     """d/dt of the returned latitude/longitude equals the rates at off-node times (< 1e-11 m/s)."""
-    traj = SegmentsTrajectory.from_config(*case)
+    traj = build(*case)
     first = traj.local_truth(np.array([0.0]))
     start = time.perf_counter()
     path = LatLonPath(piece_breaks(traj), first.lat[0], first.lon[0], velocity_of(traj))
@@ -275,7 +291,7 @@ def test_unsorted_times_and_determinism(mixed):
     b = mixed.local_truth(t[order])
     for name in ("lat", "lon", "alt", "v_ned", "c_b_n"):
         np.testing.assert_array_equal(getattr(a, name)[order], getattr(b, name), err_msg=name)
-    again = SegmentsTrajectory.from_config(INITIAL, MIXED).local_truth(t)
+    again = build(INITIAL, MIXED).local_truth(t)
     np.testing.assert_array_equal(again.lat, a.lat)
     np.testing.assert_array_equal(again.lon, a.lon)
 
@@ -311,20 +327,64 @@ def test_initial_state_is_reproduced(mixed):
             "segments[0].climb_rate_mps",
         ),
         ([{"duration_s": 5, "climb_rate_mps": 3, "transition_s": 0}], "segments[0].climb_rate_mps"),
+        (
+            [{"duration_s": 10}, {"duration_s": 100, "accel_ned_mps2": [0, 0, 5]}],
+            "segments[1].accel_ned_mps2",
+        ),
     ],
 )
 def test_bad_values_name_the_key(segments, key):
-    with pytest.raises(ValueError, match=key.replace("[", r"\[").replace("]", r"\]")):
-        SegmentsTrajectory.from_config(dict(INITIAL, velocity_ned_mps=[20, 0, 0]), segments)
+    with pytest.raises(ScenarioError) as info:
+        build(dict(INITIAL, velocity_ned_mps=[20, 0, 0]), segments)
+    assert info.value.key == f"trajectory.{key}", str(info.value)
 
 
 def test_bad_initial_names_the_key():
-    with pytest.raises(ValueError, match="initial.latitude_deg"):
-        SegmentsTrajectory.from_config(dict(INITIAL, latitude_deg=95.0), [{"duration_s": 1}])
-    with pytest.raises(ValueError, match=r"initial.velocity_ned_mps\[1\]"):
-        SegmentsTrajectory.from_config(
-            dict(INITIAL, velocity_ned_mps=[0, None, 0]), [{"duration_s": 1}]
+    with pytest.raises(ScenarioError) as info:
+        build(dict(INITIAL, latitude_deg=95.0), [{"duration_s": 1}])
+    assert info.value.key == "initial.latitude_deg"
+    with pytest.raises(ScenarioError) as info:
+        build(dict(INITIAL, velocity_ned_mps=[0, None, 0]), [{"duration_s": 1}])
+    assert info.value.key == "initial.velocity_ned_mps[1]"
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "key"),
+    [("latitude_deg", 89.95, "initial.latitude_deg"),
+     ("attitude_rph_deg", [0.0, -89.95, 0.0], "initial.attitude_rph_deg[1]")],
+)  # fmt: skip
+def test_start_beyond_the_segments_limits_is_rejected_at_load(field, value, key):
+    """±89.9° of latitude and pitch for segments (the top-level ``initial`` allows ±90°)."""
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(
+            {"rate_hz": 100, "initial": dict(INITIAL, **{field: value}),
+             "trajectory": {"kind": "segments", "segments": [{"duration_s": 1}]}}
+        )  # fmt: skip
+    assert info.value.key == key and "89.9" in info.value.problem
+    build(dict(INITIAL, **{field: 89.85 if field == "latitude_deg" else [0, -89.85, 0]}),
+          [{"duration_s": 1}])  # fmt: skip
+
+
+def test_latitude_beyond_the_limit_names_the_segment():
+    with pytest.raises(ScenarioError) as info:
+        build(
+            dict(INITIAL, latitude_deg=89.8, velocity_ned_mps=[0, 0, 0]),
+            [{"duration_s": 10}, {"duration_s": 100, "accel_mps2": 5}],
         )
+    assert info.value.key == "trajectory.segments[1]"
+    assert info.value.problem.startswith("latitude would exceed ±89.9°")
+
+
+def test_core_errors_name_the_segment_attribute():
+    """The core model raises TrajectoryError with ``where`` = (segments, index, attribute)."""
+    segments = [Segment(duration=10.0), Segment(duration=10.0, accel=-3.0)]
+    with pytest.raises(TrajectoryError) as info:
+        SegmentsTrajectory(math.radians(45), 0.0, 0.0, [20, 0, 0], [0, 0, 0], segments)
+    assert info.value.where == ("segments", 1, "accel")
+    assert str(info.value).startswith("segments[1].accel: the ground speed would become negative")
+    with pytest.raises(TrajectoryError) as info:
+        SegmentsTrajectory(math.radians(89.95), 0.0, 0.0, [0, 0, 0], [0, 0, 0], segments[:1])
+    assert info.value.where == ("lat",)
 
 
 def test_times_outside_the_trajectory_are_rejected(mixed):

@@ -30,6 +30,7 @@ from strapdown_ros.config.base import (
     Vector3,
     validate_section,
 )
+from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 
 __all__ = [
     "DEFAULT_FRAMES",
@@ -148,7 +149,7 @@ class Scenario(Model):
     gravity_model: Literal["j2", "spherical"] = "j2"
     initial: Initial | None = None
     # -- sections (each its own model; see config/<section>.py) --------------------------------
-    trajectory: dict[str, Any]  # SECTION trajectory
+    trajectory: TrajectorySpec  # SECTION trajectory
     variation: dict[str, Any] | None = None  # SECTION variation
     navigator: dict[str, Any] | None = None  # SECTION navigator
     imu_errors: dict[str, Any] | None = None  # SECTION imu_errors
@@ -221,29 +222,13 @@ class Scenario(Model):
                 f"the generation period T/oversample = {self.period_ns}/{self.oversample} ns is "
                 "not an integer number of nanoseconds",
             )
+        check_trajectory(self)
         _legacy_sections(self)
         return self
 
 
 def _legacy_sections(scenario: Scenario) -> None:
     """Checks of the sections not yet typed (each moves into its section model)."""
-    trajectory = scenario.trajectory
-    kind = trajectory.get("kind")
-    kinds = ("segments", "samples", "increments", "coning")
-    if kind not in kinds:
-        raise ScenarioError(
-            "trajectory.kind", f"must be one of: {', '.join(kinds)}; got {kind!r}"
-        )
-    allowed = {"segments": ("kind", "segments"), "increments": ("kind", "segments"),
-               "coning": ("kind", "coning")}.get(kind)  # fmt: skip
-    if allowed is not None:
-        for key in trajectory:
-            if key not in allowed:
-                raise ScenarioError(
-                    f"trajectory.{key}", f"unknown key; expected one of: {', '.join(allowed)}"
-                )
-    if kind != "samples" and scenario.initial is None:
-        raise ScenarioError("initial", "is required")
     variation = scenario.variation
     if variation is not None:
         from strapdown_ros.core.offsets import validate_offsets

@@ -16,21 +16,24 @@ Steps (SPEC §2-§3, Savage 2020):
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
 from strapdown_ros.config import Scenario, ScenarioError
+from strapdown_ros.config.trajectory import (
+    IncrementsTrajectorySpec,
+    SamplesTrajectorySpec,
+    core_initial,
+)
 from strapdown_ros.core.gravity import gravitation
 from strapdown_ros.core.method2 import method2, pair_displacement
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.core.trajectory.base import Trajectory, local_to_e0
+from strapdown_ros.core.trajectory.base import Trajectory, TrajectoryError, local_to_e0
 from strapdown_ros.messages import stream_from_messages
 
 __all__ = [
@@ -46,121 +49,58 @@ __all__ = [
 ]
 
 
-def _wrap(path: str, exc: Exception) -> ScenarioError:
-    """A kind builder's error as a ScenarioError; keeps the key if the message names one."""
-    message = str(exc).strip("'\"")
-    head, sep, rest = message.partition(": ")
-    if sep and re.fullmatch(r"[A-Za-z_][\w.\[\]]*", head):
-        if head.startswith("trajectory"):
-            return ScenarioError(head, rest)
-        if head.startswith("initial"):
-            return ScenarioError(head, rest)
-        section = path.rsplit(".", 1)[-1]
-        if head.startswith(section):  # e.g. "segments[2].accel_mps2" under trajectory.segments
-            return ScenarioError(f"{path.rsplit('.', 1)[0]}.{head}", rest)
-        return ScenarioError(f"{path}.{head}", rest)
-    return ScenarioError(path, message)
-
-
 def build_trajectory(scenario: Scenario) -> Trajectory | None:
     """The continuous trajectory model of the scenario (``None`` for kind ``increments``).
 
     Raises
     ------
     ScenarioError
-        When the kind's parameters are invalid or describe an impossible trajectory.
+        For a trajectory found impossible while building it (e.g.
+        ``trajectory.segments[2].accel_mps2`` when the speed would become negative), samples
+        that cannot be read or fitted (``trajectory.file``, ``trajectory.knots``, ...).
     """
-    traj = scenario.trajectory
-    kind = traj["kind"]
-    if kind == "samples":
-        from strapdown_ros.core.trajectory.samples import SamplesTrajectory
-
-        samples = odometry_samples(traj, scenario.base_dir) if "bag" in traj else None
-        try:
-            return SamplesTrajectory.from_config(traj, scenario.base_dir, samples)
-        except (ValueError, TypeError, KeyError, OSError) as exc:
-            raise _wrap("trajectory", exc) from exc
-    assert scenario.initial is not None
-    initial = scenario.initial.as_dict()
-    try:
-        if kind == "segments":
-            from strapdown_ros.core.trajectory.segments import SegmentsTrajectory
-
-            return SegmentsTrajectory.from_config(initial, _list(traj, "segments"))
-        if kind == "coning":
-            from strapdown_ros.core.trajectory.coning import ConingTrajectory
-
-            return ConingTrajectory.from_config(initial, traj.get("coning") or {})
-    except ScenarioError:
-        raise
-    except (ValueError, TypeError, KeyError, OSError) as exc:
-        raise _wrap(f"trajectory.{_section(kind)}", exc) from exc
-    if kind == "increments":
-        _list(traj, "segments")
+    spec = scenario.trajectory
+    if isinstance(spec, SamplesTrajectorySpec):
+        return _build_samples(spec, scenario.base_dir)
+    if isinstance(spec, IncrementsTrajectorySpec):
         return None
-    raise ScenarioError("trajectory.kind", f"unknown kind {kind!r}")
+    assert scenario.initial is not None  # the model requires it for these kinds
+    return spec.build(scenario.initial)
 
 
-def odometry_samples(traj: dict[str, Any], base_dir: Path) -> Any:
-    """Samples of a ``samples`` trajectory from a bag's ``nav_msgs/Odometry`` topic.
+def _build_samples(spec: SamplesTrajectorySpec, base_dir: Path) -> Trajectory:
+    """Read the samples (CSV file or a bag's Odometry topic) and fit them."""
+    from strapdown_ros.core.trajectory.samples import SamplesTrajectory
+    from strapdown_ros.inputs.samples import (
+        SamplesInputError,
+        load_samples_csv,
+        odometry_samples,
+    )
 
-    Keys: ``bag`` (directory, relative to the scenario file) and ``topic`` (default
-    ``/reference/odom``). Per SPEC §4 the messages give ECEF position, body FLU attitude
-    relative to ECEF, and Earth-relative velocity and angular rate in body axes; they are
-    converted to FRD and passed to the Giribet fit (position, velocity, attitude, rate).
-    """
-    from strapdown_ros.bag.reader import BagReadError, read_bag
-    from strapdown_ros.core.trajectory.samples import samples_from_arrays
-    from strapdown_ros.messages import odometry_state
-
-    path = Path(traj["bag"])
-    if not path.is_absolute():
-        path = base_dir / path
-    topic = traj.get("topic", "/reference/odom")
+    source = Path(spec.file if spec.file is not None else spec.bag)  # type: ignore[arg-type]
+    if not source.is_absolute():
+        source = base_dir / source
     try:
-        contents = read_bag(path, [topic])
-    except BagReadError as exc:
-        key = "trajectory.topic" if "no topic" in str(exc) else "trajectory.bag"
-        raise ScenarioError(key, str(exc)) from None
-    if topic not in contents.topics:
-        raise ScenarioError("trajectory.topic", f"{topic!r} is not in {path}")
-    if contents.topics[topic].msgtype != "nav_msgs/msg/Odometry":
-        raise ScenarioError(
-            "trajectory.topic", f"{topic!r} is {contents.topics[topic].msgtype}, not Odometry"
-        )
-    state = odometry_state(contents[topic])  # FRD body axes
-    t = (state.stamps_ns - state.stamps_ns[0]) * 1e-9
+        if spec.file is not None:
+            samples = load_samples_csv(source, columns=spec.columns, rate_frame=spec.rate_frame)
+        else:
+            samples = odometry_samples(source, spec.odometry_topic)
+    except SamplesInputError as exc:
+        raise ScenarioError(f"trajectory.{exc.key}", exc.problem) from None
     try:
-        return samples_from_arrays(
-            t,
-            r_ecef=state.r_e,
-            v_ecef=state.v_e,
-            c_b_e=state.c_b_e,
-            omega_eb_b=state.omega_eb_b,
-        )
-    except ValueError as exc:
-        raise ScenarioError("trajectory.bag", f"{path} {topic}: {exc}") from None
-
-
-def _section(kind: str) -> str:
-    return {"segments": "segments", "increments": "segments"}.get(kind, kind)
-
-
-def _list(traj: dict[str, Any], key: str) -> list[dict[str, Any]]:
-    value = traj.get(key)
-    if not isinstance(value, list) or not value:
-        raise ScenarioError(f"trajectory.{key}", "must be a non-empty list of segments")
-    for i, item in enumerate(value):
-        if not isinstance(item, dict):
-            raise ScenarioError(f"trajectory.{key}[{i}]", "must be a mapping")
-    return value
+        return SamplesTrajectory(samples, spec.fit_options())
+    except TrajectoryError as exc:
+        key, prefix = spec.key_of(exc.where)
+        raise ScenarioError(key, prefix + exc.problem) from None
+    except ValueError as exc:  # samples the fit cannot use
+        raise ScenarioError(spec.source_key, f"{source}: {exc}") from None
 
 
 def natural_duration(scenario: Scenario, trajectory: Trajectory | None) -> float:
     """Length (s) of the trajectory as described, before ``duration_s`` truncates it."""
     if trajectory is not None:
         return float(trajectory.duration)
-    return float(sum(float(s.get("duration_s", 0.0)) for s in scenario.trajectory["segments"]))
+    return scenario.trajectory.natural_duration  # type: ignore[union-attr]
 
 
 def output_cycles(scenario: Scenario, trajectory: Trajectory | None) -> int:
@@ -252,7 +192,9 @@ def generate_reference_chunks(
         raise ValueError(
             f"chunk sizes must be even and >= 2, got {chunk_cycles} and {first_cycles}"
         )
-    if trajectory is None and scenario.trajectory["kind"] != "increments":
+    spec = scenario.trajectory
+    increments = isinstance(spec, IncrementsTrajectorySpec)
+    if trajectory is None and not increments:
         trajectory = build_trajectory(scenario)
     out_cycles = output_cycles(scenario, trajectory)
     oversample = scenario.oversample
@@ -262,19 +204,17 @@ def generate_reference_chunks(
     if trajectory is None:  # kind: increments, exact by construction (sequential integration)
         from strapdown_ros.core.trajectory.increments import generate_increments_stream
 
+        assert isinstance(spec, IncrementsTrajectorySpec) and scenario.initial is not None
         try:
-            assert scenario.initial is not None
             full = generate_increments_stream(
-                scenario.initial.as_dict(),
-                scenario.trajectory["segments"],
-                scenario.rate_hz * oversample,
+                *core_initial(scenario.initial),
+                spec.core_segments(),
+                gen_period_ns,
                 scenario.start_time_ns,
                 gravity_model=model,
             )
-        except ScenarioError:
-            raise
-        except (ValueError, TypeError, KeyError) as exc:
-            raise _wrap("trajectory.segments", exc) from exc
+        except TrajectoryError as exc:
+            raise ScenarioError(spec.key_of(exc.where), exc.problem) from None
         full = decimate(_truncate(full, out_cycles * oversample), oversample)
         for m0, m1 in _chunk_bounds(out_cycles, chunk_cycles, first_cycles):
             yield slice_stream(full, m0, m1)

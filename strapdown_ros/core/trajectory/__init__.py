@@ -6,6 +6,12 @@ from Savage's Method 2 with zero offsets (:mod:`strapdown_ros.core.method2`), wh
 exact (SPEC §3) whatever the model.
 """
 
-from strapdown_ros.core.trajectory.base import LocalTruth, Trajectory, TruthE0, local_to_e0
+from strapdown_ros.core.trajectory.base import (
+    LocalTruth,
+    Trajectory,
+    TrajectoryError,
+    TruthE0,
+    local_to_e0,
+)
 
-__all__ = ["LocalTruth", "Trajectory", "TruthE0", "local_to_e0"]
+__all__ = ["LocalTruth", "Trajectory", "TrajectoryError", "TruthE0", "local_to_e0"]

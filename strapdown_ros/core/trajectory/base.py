@@ -23,6 +23,37 @@ from strapdown_ros.core.earth import (
 Array = NDArray[np.float64]
 
 
+class TrajectoryError(ValueError):
+    """Invalid or impossible trajectory inputs; ``where`` names the culprit argument.
+
+    ``where`` is a path into the inputs of the model that raised it, names and list indices,
+    e.g. ``("segments", 2, "accel_mps2")`` (segment 2's along-track acceleration) or
+    ``("position", "knots")`` (the knots of the position spline); ``problem`` says what is
+    wrong. ``str(exc)`` is ``"segments[2].accel_mps2: <problem>"``. Callers that build a model
+    from a scenario map ``where`` to the scenario key.
+    """
+
+    def __init__(self, where: tuple[str | int, ...], problem: str) -> None:
+        self.where = tuple(where)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}" if self.where else problem)
+
+    @property
+    def path(self) -> str:
+        """``where`` written like a key: ``segments[2].accel_mps2``."""
+        out = ""
+        for part in self.where:
+            out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else part)
+        return out
+
+    def under(self, *prefix: str | int) -> TrajectoryError:
+        """The same problem with ``prefix`` put before ``where``."""
+        return TrajectoryError((*prefix, *self.where), self.problem)
+
+    def __reduce__(self) -> tuple[type, tuple[tuple[str | int, ...], str]]:  # picklable
+        return (type(self), (self.where, self.problem))
+
+
 @dataclass(frozen=True)
 class LocalTruth:
     """Truth samples in navigation terms.

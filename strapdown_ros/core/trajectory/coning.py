@@ -24,22 +24,24 @@ modelled here: the trajectory is the CM, and the variation step adds the lever a
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from strapdown_ros.core.rotations import dcm_from_euler, rot_y, rot_z
 from strapdown_ros.core.trajectory.base import LocalTruth
-from strapdown_ros.core.trajectory.segments import (
-    LatLonPath,
-    parse_initial,
-    read_number,
-    read_vector3,
-)
+from strapdown_ros.core.trajectory.latlon_path import LatLonPath
 
-__all__ = ["CONING_KEYS", "ConingTrajectory"]
+__all__ = [
+    "AMPLITUDE_DEFAULT",
+    "CM_MOTIONS",
+    "DURATION_DEFAULT",
+    "PERIOD_DEFAULT",
+    "PRECESSION_RATE_DEFAULT",
+    "THETA_DEFAULT",
+    "ConingTrajectory",
+    "lowest_altitude",
+]
 
 Array = NDArray[np.float64]
 
@@ -50,17 +52,25 @@ AMPLITUDE_DEFAULT = (200.0, 150.0, 5.0)
 PERIOD_DEFAULT = (1200.0, 1200.0, 300.0)
 DURATION_DEFAULT = 300.0
 
-CONING_KEYS = (
-    "theta_rad",
-    "theta_deg",
-    "precession_rate_radps",
-    "precession_rate_dps",
-    "cm_motion",
-    "velocity_amplitude_ned_mps",
-    "velocity_period_ned_s",
-    "duration_s",
-)
 CM_MOTIONS = ("rest", "sinusoids")
+
+
+def lowest_altitude(
+    alt0: float, amplitude_down: float, period_down: float, duration: float
+) -> float:
+    """Lowest CM altitude (m) of the sinusoids over ``[0, duration]``.
+
+    ``h = h0 - A_D P_D/(2π) (1 - cos(2π t/P_D))`` is lowest at ``t = P_D/2`` or at the end;
+    ``h0`` itself when ``A_D <= 0`` (the CM rises first).
+    """
+    if amplitude_down <= 0.0:
+        return float(alt0)
+    one_minus_cos = (
+        2.0
+        if duration >= 0.5 * period_down
+        else 1.0 - math.cos(2.0 * math.pi * duration / period_down)
+    )
+    return float(alt0 - amplitude_down * period_down / (2.0 * math.pi) * one_minus_cos)
 
 
 class ConingTrajectory:
@@ -103,7 +113,7 @@ class ConingTrajectory:
 
     Position. At rest: constant. Sinusoids: ``h(t) = h_0 - A_D P_D/(2π) (1 - cos(2π t/P_D))``
     in closed form; latitude and longitude integrate the geodetic rates with
-    :class:`~strapdown_ros.core.trajectory.segments.LatLonPath`. The velocity is zero at t = 0
+    :class:`~strapdown_ros.core.trajectory.latlon_path.LatLonPath`. The velocity is zero at t = 0
     in both cases.
     """
 
@@ -140,88 +150,6 @@ class ConingTrajectory:
         self._path = None
         if cm_motion == "sinusoids":
             self._path = LatLonPath([0.0, self._duration], self.lat0, self.lon0, self._vn_ve_h)
-
-    @classmethod
-    def from_config(cls, initial: Mapping[str, Any], params: Mapping[str, Any]) -> ConingTrajectory:
-        """Build from the scenario ``initial`` and ``trajectory.coning`` mappings.
-
-        Parameters
-        ----------
-        initial : mapping
-            SPEC §5 ``initial``; ``velocity_ned_mps`` must be zero (the §6 CM starts at rest in
-            both cases); ``attitude_rph_deg`` gives ``C_0``.
-        params : mapping
-            ``theta_rad`` or ``theta_deg`` (cone half-angle, default π/2 rad);
-            ``precession_rate_radps`` or ``precession_rate_dps`` (Ω_p, default π/6 rad/s);
-            ``cm_motion``: ``rest`` (default) or ``sinusoids``;
-            ``velocity_amplitude_ned_mps`` (3 values, m/s, default [200, 150, 5]);
-            ``velocity_period_ned_s`` (3 values, s, default [1200, 1200, 300]);
-            ``duration_s`` (s, default 300).
-
-        Raises
-        ------
-        ValueError
-            Naming the key, for an unknown key or a bad value.
-        """
-        lat, lon, alt, v, rph = parse_initial(initial)
-        if np.any(v != 0.0):
-            raise ValueError(
-                "initial.velocity_ned_mps: the coning trajectory starts at rest (Waldmann §6), "
-                f"got {v.tolist()}"
-            )
-        if params is None:
-            params = {}
-        if not isinstance(params, Mapping):
-            raise ValueError(f"coning: must be a mapping, got {type(params).__name__}")
-        for key in params:
-            if key not in CONING_KEYS:
-                raise ValueError(f"{key}: unknown key; expected one of {', '.join(CONING_KEYS)}")
-        for a, b in (("theta_rad", "theta_deg"), ("precession_rate_radps", "precession_rate_dps")):
-            if a in params and b in params:
-                raise ValueError(f"{b}: give either {a} or {b}, not both")
-        theta = THETA_DEFAULT
-        if "theta_rad" in params:
-            theta = read_number(params["theta_rad"], "theta_rad")
-        elif "theta_deg" in params:
-            theta = math.radians(read_number(params["theta_deg"], "theta_deg"))
-        if not 0.0 <= theta <= math.pi:
-            key = "theta_rad" if "theta_rad" in params else "theta_deg"
-            raise ValueError(f"{key}: the cone half-angle must be in [0, π] rad, got {theta}")
-        rate = PRECESSION_RATE_DEFAULT
-        if "precession_rate_radps" in params:
-            rate = read_number(params["precession_rate_radps"], "precession_rate_radps")
-        elif "precession_rate_dps" in params:
-            rate = math.radians(read_number(params["precession_rate_dps"], "precession_rate_dps"))
-        motion = params.get("cm_motion", "rest")
-        if motion not in CM_MOTIONS:
-            raise ValueError(f"cm_motion: must be one of {', '.join(CM_MOTIONS)}, got {motion!r}")
-        amp = read_vector3(
-            params.get("velocity_amplitude_ned_mps", AMPLITUDE_DEFAULT),
-            "velocity_amplitude_ned_mps",
-        )
-        per = read_vector3(
-            params.get("velocity_period_ned_s", PERIOD_DEFAULT), "velocity_period_ned_s"
-        )
-        if np.any(per <= 0.0):
-            raise ValueError(f"velocity_period_ned_s: must be > 0, got {per.tolist()}")
-        duration = read_number(params.get("duration_s", DURATION_DEFAULT), "duration_s")
-        if duration <= 0.0:
-            raise ValueError(f"duration_s: must be > 0, got {duration}")
-        traj = cls(lat, lon, alt, theta, rate, duration, motion, amp, per, rph)
-        if motion == "sinusoids" and amp[2] > 0.0:
-            # h = h0 - A_D P_D/(2π) (1 - cos(2π t/P_D)), lowest at t = P_D/2 or at the end.
-            one_minus_cos = (
-                2.0
-                if duration >= 0.5 * per[2]
-                else 1.0 - math.cos(2.0 * math.pi * duration / per[2])
-            )
-            h_min = alt - amp[2] * per[2] / (2.0 * math.pi) * one_minus_cos
-            if h_min < -10_000.0:
-                raise ValueError(
-                    f"velocity_amplitude_ned_mps: altitude would fall to {h_min:.1f} m, "
-                    "below -10 km"
-                )
-        return traj
 
     @property
     def duration(self) -> float:

@@ -54,6 +54,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
 from strapdown_ros.core.rotations import quat_conjugate, quat_multiply
+from strapdown_ros.core.trajectory.base import TrajectoryError
 
 __all__ = [
     "DerivativeData",
@@ -101,34 +102,38 @@ def breakpoint_continuity(
 
     Raises
     ------
-    ValueError
-        Naming ``knots``, ``degree`` or ``continuity`` when they are inconsistent.
+    TrajectoryError
+        ``where = ("knots",)`` or ``("continuity",)`` when they are inconsistent (ValueError
+        for a bad ``degree``).
     """
     if int(degree) != degree or degree < 1:
         raise ValueError(f"degree must be an integer >= 1, got {degree!r}")
     p = int(degree)
     bp = np.asarray(breakpoints, dtype=np.float64)
     if bp.ndim != 1 or bp.size < 2:
-        raise ValueError("knots: need at least two breakpoints (start and end of the span)")
+        raise TrajectoryError(
+            ("knots",), "need at least two breakpoints (start and end of the span)"
+        )
     if not np.all(np.isfinite(bp)):
-        raise ValueError("knots: breakpoints must be finite")
+        raise TrajectoryError(("knots",), "breakpoints must be finite")
     if np.any(np.diff(bp) <= 0.0):
         i = int(np.argmax(np.diff(bp) <= 0.0))
-        raise ValueError(
-            f"knots: breakpoints must be strictly increasing (t[{i}]={bp[i]!r}, "
-            f"t[{i + 1}]={bp[i + 1]!r}); lower the continuity instead of repeating a knot"
+        raise TrajectoryError(
+            ("knots",),
+            f"breakpoints must be strictly increasing (t[{i}]={bp[i]!r}, "
+            f"t[{i + 1}]={bp[i + 1]!r}); lower the continuity instead of repeating a knot",
         )
     c = np.asarray(continuity)
     if c.ndim == 0:
         c = np.full(bp.size - 2, int(c), dtype=np.int64)
     elif c.shape != (bp.size - 2,):
-        raise ValueError(
-            f"continuity: expected one value per interior knot ({bp.size - 2}), got {c.size}"
+        raise TrajectoryError(
+            ("continuity",), f"expected one value per interior knot ({bp.size - 2}), got {c.size}"
         )
     if c.size and (np.any(c != np.round(c)) or c.min() < -1 or c.max() > p - 1):
-        raise ValueError(
-            f"continuity: orders must be integers in [-1, degree-1] = [-1, {p - 1}], "
-            f"got {c.tolist()}"
+        raise TrajectoryError(
+            ("continuity",),
+            f"orders must be integers in [-1, degree-1] = [-1, {p - 1}], got {c.tolist()}",
         )
     return bp, c.astype(np.int64)
 
@@ -211,9 +216,10 @@ def _design(xi: Array, degree: int, tau: Array, order: int) -> sparse.csr_array:
 
 def _check_span(name: str, tau: Array, lo: float, hi: float) -> None:
     if tau.size and (tau[0] < lo or tau[-1] > hi):
-        raise ValueError(
-            f"knots: {name} samples span [{tau[0]!r}, {tau[-1]!r}] s, outside the knot span "
-            f"[{lo!r}, {hi!r}] s"
+        raise TrajectoryError(
+            ("knots",),
+            f"{name} samples span [{tau[0]!r}, {tau[-1]!r}] s, outside the knot span "
+            f"[{lo!r}, {hi!r}] s",
         )
 
 
@@ -226,10 +232,11 @@ def _schoenberg_whitney(bp: Array, degree: int, tau: Array) -> None:
     bad = np.flatnonzero(count < degree + 1)
     if bad.size:
         i = int(bad[0])
-        raise ValueError(
-            f"knots: interval [{bp[i]!r}, {bp[i + 1]!r}] s holds {int(count[i])} distinct "
+        raise TrajectoryError(
+            ("knots",),
+            f"interval [{bp[i]!r}, {bp[i + 1]!r}] s holds {int(count[i])} distinct "
             f"samples, a degree-{degree} spline needs at least {degree + 1} in every knot "
-            f"interval (Giribet 2007 assumption (ii-c)); use wider knot spacing"
+            f"interval (Giribet 2007 assumption (ii-c)); use wider knot spacing",
         )
 
 
@@ -314,9 +321,10 @@ def fit_spline(
     try:
         chol = cholesky_banded(ab, lower=False)
     except LinAlgError as exc:
-        raise ValueError(
-            "knots: the samples do not determine the spline (normal matrix of Giribet eq. (14) "
-            "is not positive definite); use wider knot spacing or more samples"
+        raise TrajectoryError(
+            ("knots",),
+            "the samples do not determine the spline (normal matrix of Giribet eq. (14) "
+            "is not positive definite); use wider knot spacing or more samples",
         ) from exc
     alpha = cho_solve_banded((chol, False), rhs)
     return BSpline(xi, alpha, p, extrapolate=False)

@@ -16,40 +16,56 @@ increment pair, which this module deliberately does not do (it raises instead).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core.exact_update import integrate
 from strapdown_ros.core.gravity import gravitation
 from strapdown_ros.core.rotations import dcm_from_euler
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.core.trajectory.base import LocalTruth, local_to_e0
-from strapdown_ros.core.trajectory.segments import parse_initial, read_number, read_vector3
+from strapdown_ros.core.trajectory.base import LocalTruth, TrajectoryError, local_to_e0
 
-__all__ = ["INCREMENT_SEGMENT_KEYS", "generate_increments_stream"]
-
-INCREMENT_SEGMENT_KEYS = ("duration_s", "omega_dps", "specific_force_mps2")
+__all__ = ["IncrementSegment", "generate_increments_stream", "whole_cycles"]
 
 
-def _period_ns(rate_hz: float) -> int:
-    rate = read_number(rate_hz, "rate_hz")
-    if rate <= 0.0:
-        raise ValueError(f"rate_hz: must be > 0, got {rate}")
-    period = 1e9 / rate
-    period_ns = round(period)
-    if period_ns < 1 or abs(period - period_ns) > 1e-9 * max(1.0, period):
-        raise ValueError(
-            f"rate_hz: the period 1e9/rate_hz = {period!r} ns is not an integer number of ns"
-        )
-    return int(period_ns)
+@dataclass(frozen=True)
+class IncrementSegment:
+    """One constant-rate segment (Savage 2020 Appendix A), body FRD axes.
+
+    Attributes
+    ----------
+    duration : float
+        Length (s), > 0, a whole number of cycles.
+    omega : tuple of 3 floats
+        Inertial body angular rate ``ω_ib^B`` (rad/s).
+    specific_force : tuple of 3 floats
+        Specific force ``f^B`` (m/s²).
+    """
+
+    duration: float
+    omega: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    specific_force: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+def whole_cycles(duration: float, period_ns: int) -> int | None:
+    """Cycles of ``period_ns`` in ``duration`` (s), None unless a whole number (to 1e-9 rel.)."""
+    n = round(duration * 1e9 / period_ns)
+    if n < 1 or abs(n * (period_ns * 1e-9) - duration) > 1e-9 * max(1.0, duration):
+        return None
+    return int(n)
 
 
 def generate_increments_stream(
-    initial: Mapping[str, Any],
-    segments: Sequence[Mapping[str, Any]],
-    rate_hz: float,
+    lat: float,
+    lon: float,
+    alt: float,
+    v_ned: ArrayLike,
+    rph: ArrayLike,
+    segments: Sequence[IncrementSegment],
+    period_ns: int,
     t0_ns: int,
     gravity_model: str = "j2",
 ) -> Stream:
@@ -57,18 +73,19 @@ def generate_increments_stream(
 
     Parameters
     ----------
-    initial : mapping
-        SPEC §5 ``initial``: ``latitude_deg``, ``longitude_deg``, ``altitude_m``,
-        ``velocity_ned_mps`` (relative to the Earth, NED, m/s), ``attitude_rph_deg`` (FRD w.r.t.
-        NED, deg). Converted to the E0 state ``C_B^E0, V^E0, R^E0`` at t0 by
+    lat, lon, alt : float
+        Initial geodetic latitude, longitude (rad) and ellipsoidal altitude (m), WGS-84.
+    v_ned : array (3,)
+        Initial velocity relative to the Earth, NED (m/s).
+    rph : array (3,)
+        Initial roll, pitch, heading of FRD w.r.t. NED (rad). The initial state is converted to
+        the E0 state ``C_B^E0, V^E0, R^E0`` at t0 by
         :func:`~strapdown_ros.core.trajectory.base.local_to_e0` (so ``V^E0`` includes
         ``ω_ie × R``).
-    segments : sequence of mappings
-        Each with ``duration_s`` (s, > 0, a whole number of cycles 1/rate_hz),
-        ``omega_dps`` (3 values: inertial body angular rate ``ω_ib^B``, FRD, deg/s, default 0)
-        and ``specific_force_mps2`` (3 values: specific force ``f^B``, FRD, m/s², default 0).
-    rate_hz : float
-        Cycle rate 1/T (Hz); 1e9/rate_hz must be an integer number of ns (SPEC §2).
+    segments : sequence of IncrementSegment
+        The segments in order; each a whole number of cycles.
+    period_ns : int
+        Cycle period T (ns).
     t0_ns : int
         Stamp of cycle 0 (ns since the Unix epoch).
     gravity_model : str
@@ -83,48 +100,30 @@ def generate_increments_stream(
 
     Raises
     ------
-    ValueError
-        Naming the key (``segments[i].key``, ``rate_hz``, ``initial.key``) for a bad value, an
-        unknown key, or a segment that is not a whole number of cycles.
+    TrajectoryError
+        ``("segments",)`` when there is none, ``("segments", i, "duration")`` for a segment that
+        is not a whole number of cycles.
     """
-    period_ns = _period_ns(rate_hz)
+    period_ns = int(period_ns)
+    if period_ns < 1:
+        raise ValueError(f"period_ns: must be >= 1, got {period_ns}")
     period = period_ns * 1e-9
-    lat, lon, alt, v_ned, rph = parse_initial(initial)
-    if isinstance(segments, (str, bytes, Mapping)) or not isinstance(segments, Sequence):
-        raise ValueError("segments: must be a list of mappings")
     if len(segments) == 0:
-        raise ValueError("segments: must be a non-empty list")
+        raise TrajectoryError(("segments",), "must be a non-empty list")
     omegas, forces, counts = [], [], []
     for i, seg in enumerate(segments):
-        where = f"segments[{i}]"
-        if not isinstance(seg, Mapping):
-            raise ValueError(f"{where}: must be a mapping, got {type(seg).__name__}")
-        for key in seg:
-            if key not in INCREMENT_SEGMENT_KEYS:
-                raise ValueError(
-                    f"{where}.{key}: unknown key; expected one of "
-                    f"{', '.join(INCREMENT_SEGMENT_KEYS)}"
-                )
-        if "duration_s" not in seg:
-            raise ValueError(f"{where}.duration_s: is required")
-        duration = read_number(seg["duration_s"], f"{where}.duration_s")
-        if duration <= 0.0:
-            raise ValueError(f"{where}.duration_s: must be > 0, got {duration}")
-        n = round(duration * 1e9 / period_ns)
-        if n < 1 or abs(n * period - duration) > 1e-9 * max(1.0, duration):
-            raise ValueError(
-                f"{where}.duration_s: {duration} s is not a whole number of cycles of "
-                f"{period} s (segment boundaries must fall on cycle boundaries)"
+        n = whole_cycles(seg.duration, period_ns)
+        if n is None:
+            raise TrajectoryError(
+                ("segments", i, "duration"),
+                f"{seg.duration} s is not a whole number of cycles of {period} s (segment "
+                "boundaries must fall on cycle boundaries)",
             )
-        omegas.append(
-            np.radians(read_vector3(seg.get("omega_dps", [0.0, 0.0, 0.0]), f"{where}.omega_dps"))
-        )
-        forces.append(
-            read_vector3(
-                seg.get("specific_force_mps2", [0.0, 0.0, 0.0]), f"{where}.specific_force_mps2"
-            )
-        )
+        omegas.append(np.asarray(seg.omega, dtype=np.float64).reshape(3))
+        forces.append(np.asarray(seg.specific_force, dtype=np.float64).reshape(3))
         counts.append(n)
+    v_ned = np.asarray(v_ned, dtype=np.float64).reshape(3)
+    rph = np.asarray(rph, dtype=np.float64).reshape(3)
     counts_arr = np.asarray(counts)
     dalpha = np.repeat(np.asarray(omegas), counts_arr, axis=0) * period
     dv = np.repeat(np.asarray(forces), counts_arr, axis=0) * period

@@ -27,20 +27,17 @@ España & Miranda 2007 (``seeds/003``, implemented in
   attitudes, evaluated at the sample times, are then fitted like samples (``fit``).
 
 Time: ``t`` of :meth:`SamplesTrajectory.local_truth` is seconds since the first sample
-(``t0`` of the stream); knot times in options/config are also seconds since the first sample.
+(``t0`` of the stream); knot times in the options are also seconds since the first sample.
 
-Units in the array API are SI with angles in rad; the CSV format uses the column names listed in
-:func:`load_samples_csv` (degrees where the name says ``_deg``).
+Units are SI with angles in rad. Reading samples from files (CSV, a bag's Odometry topic) is
+:mod:`strapdown_ros.inputs.samples`; the scenario keys are ``config.trajectory.SamplesSpec``.
 """
 
 from __future__ import annotations
 
-import csv
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from pathlib import Path
-from typing import Any
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -57,7 +54,7 @@ from strapdown_ros.core.earth import (
     ned_velocity_from_ecef,
 )
 from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_quat, quat_from_dcm
-from strapdown_ros.core.trajectory.base import LocalTruth, TruthE0
+from strapdown_ros.core.trajectory.base import LocalTruth, TrajectoryError, TruthE0
 from strapdown_ros.core.trajectory.giribet import (
     QuaternionSpline,
     breakpoint_continuity,
@@ -69,14 +66,12 @@ from strapdown_ros.core.trajectory.giribet import (
 )
 
 __all__ = [
-    "CSV_COLUMNS",
     "FitOptions",
     "Samples",
     "SamplesTrajectory",
     "SplineOptions",
     "Weights",
-    "from_config",
-    "load_samples_csv",
+    "check_times",
     "samples_from_arrays",
 ]
 
@@ -84,37 +79,6 @@ Array = NDArray[np.float64]
 
 #: Speed (m/s) below which the derived heading / pitch are held (no defined direction).
 DERIVED_ATTITUDE_MIN_SPEED = 0.1
-
-#: CSV columns understood by :func:`load_samples_csv`, by group (all of a group or none).
-CSV_COLUMNS: dict[str, tuple[str, ...]] = {
-    "time": ("t",),  # or "time_s"
-    "geodetic": ("lat_deg", "lon_deg", "alt_m"),
-    "ecef": ("x_m", "y_m", "z_m"),
-    "v_ned": ("vn_mps", "ve_mps", "vd_mps"),
-    "v_ecef": ("vx_mps", "vy_mps", "vz_mps"),
-    "euler": ("roll_deg", "pitch_deg", "heading_deg"),
-    "quaternion": ("qw", "qx", "qy", "qz"),
-    "rate": ("wx_radps", "wy_radps", "wz_radps"),
-}
-
-_FIT_KINDS = ("position", "attitude")
-_WEIGHT_KEYS = ("position", "velocity", "acceleration", "attitude", "rate")
-_CONFIG_KEYS = (
-    "kind",
-    "file",
-    "bag",
-    "topic",
-    "columns",
-    "knots",
-    "degree",
-    "continuity",
-    "breaks",
-    "weights",
-    "attitude_method",
-    "rate_frame",
-    "q_step",
-)
-
 
 # --------------------------------------------------------------------------------------------
 # Options
@@ -257,7 +221,11 @@ def _arr(name: str, x: ArrayLike, n: int, width: int | tuple[int, ...] | None) -
     return a
 
 
-def _check_time(name: str, t: ArrayLike) -> Array:
+def check_times(name: str, t: ArrayLike) -> Array:
+    """``t`` as float64 if a 1-D, finite, strictly increasing array of >= 2 times (s).
+
+    Raises ValueError naming ``name`` and the first offending sample otherwise.
+    """
     t = np.asarray(t, dtype=np.float64)
     if t.ndim != 1:
         raise ValueError(f"{name}: expected a 1-D array of times, got shape {t.shape}")
@@ -329,7 +297,7 @@ def samples_from_arrays(
     ValueError
         Naming the argument: missing/duplicate inputs, wrong shape, NaN, non-increasing time.
     """
-    t = _check_time("t", t)
+    t = check_times("t", t)
     n = t.size
     geo = {"lat": lat, "lon": lon, "alt": alt}
     given_geo = [k for k, v in geo.items() if v is not None]
@@ -414,10 +382,13 @@ def samples_from_arrays(
 def _breakpoints(
     spec: SplineOptions, kind: str, duration: float, median_dt: float
 ) -> tuple[Array, NDArray[np.int64]]:
-    """Breakpoints (s since the first sample) and interior continuity of one spline."""
+    """Breakpoints (s since the first sample) and interior continuity of one spline.
+
+    Errors are :class:`TrajectoryError` with ``where = (kind, option)``.
+    """
     p = spec.degree
     if not isinstance(p, int | np.integer) or p < 1:
-        raise ValueError(f"{kind}.degree: must be an integer >= 1, got {p!r}")
+        raise TrajectoryError((kind, "degree"), f"must be an integer >= 1, got {p!r}")
     knots = spec.knots
     tol = 1e-9 * max(1.0, duration)
     if knots is None:
@@ -425,15 +396,16 @@ def _breakpoints(
     if np.ndim(knots) == 0:
         spacing = float(knots)  # type: ignore[arg-type]
         if not spacing > 0.0:
-            raise ValueError(f"{kind}.knots: spacing must be > 0 s, got {knots!r}")
+            raise TrajectoryError((kind, "knots"), f"spacing must be > 0 s, got {knots!r}")
         nint = max(1, math.floor(duration / spacing + 1e-9))
         bp = np.linspace(0.0, duration, nint + 1)
     else:
         bp = np.asarray(knots, dtype=np.float64).reshape(-1)
         if bp.size and (bp.min() < -tol or bp.max() > duration + tol):
-            raise ValueError(
-                f"{kind}.knots: breakpoints [{bp.min()!r}, {bp.max()!r}] s outside the data span "
-                f"[0, {duration!r}] s (knots are seconds since the first sample)"
+            raise TrajectoryError(
+                (kind, "knots"),
+                f"breakpoints [{bp.min()!r}, {bp.max()!r}] s outside the data span "
+                f"[0, {duration!r}] s (knots are seconds since the first sample)",
             )
         if bp.size == 0 or abs(bp[0]) > tol:
             bp = np.concatenate([[0.0], bp])
@@ -446,14 +418,18 @@ def _breakpoints(
     try:
         bp, c = breakpoint_continuity(bp, p, cont)
     except ValueError as exc:
-        raise ValueError(f"{kind}.{exc}") from None
-    for item in spec.breaks:
+        raise _under(kind, exc) from None
+    for i, item in enumerate(spec.breaks):
         try:
             tb, cb = float(item[0]), int(item[1])
         except (TypeError, ValueError, IndexError):
-            raise ValueError(f"{kind}.breaks: expected (t_s, continuity), got {item!r}") from None
+            raise TrajectoryError(
+                (kind, "breaks", i), f"expected (t_s, continuity), got {item!r}"
+            ) from None
         if not tol < tb < duration - tol:
-            raise ValueError(f"{kind}.breaks: t_s={tb!r} outside the data span (0, {duration!r}) s")
+            raise TrajectoryError(
+                (kind, "breaks", i), f"t_s={tb!r} outside the data span (0, {duration!r}) s"
+            )
         near = np.flatnonzero(np.abs(bp[1:-1] - tb) <= 1e-6)
         if near.size:
             c[near[0]] = cb
@@ -464,8 +440,15 @@ def _breakpoints(
     try:
         bp, c = breakpoint_continuity(bp, p, c)
     except ValueError as exc:
-        raise ValueError(f"{kind}.{exc}") from None
+        raise _under(kind, exc) from None
     return bp, c
+
+
+def _under(fit: str, exc: ValueError) -> TrajectoryError:
+    """An error of a spline routine as a :class:`TrajectoryError` under ``fit``."""
+    if isinstance(exc, TrajectoryError):
+        return exc.under(fit)
+    return TrajectoryError((fit,), str(exc))
 
 
 def _derived_c_b_n(v_ned: Array) -> Array:
@@ -491,7 +474,7 @@ def _weights(name: str, w: float | ArrayLike, n: int) -> Array:
     if a.ndim == 0:
         a = np.full(n, float(a))
     if a.shape != (n,) or not np.all(np.isfinite(a)) or np.any(a < 0.0):
-        raise ValueError(f"weights.{name}: expected a number >= 0 or {n} of them")
+        raise TrajectoryError(("weights", name), f"expected a number >= 0 or {n} of them")
     return a
 
 
@@ -515,9 +498,11 @@ class SamplesTrajectory:
 
     Raises
     ------
-    ValueError
-        For inconsistent options (naming ``position.*``, ``attitude.*``, ``weights.*``) or
-        samples that do not determine the splines.
+    TrajectoryError
+        For inconsistent options or samples that do not determine the splines; ``where``
+        names the option: ``(fit, option)`` with ``fit`` ``position`` or ``attitude`` and
+        ``option`` ``degree``, ``knots``, ``continuity`` or ``breaks`` (``(fit,)`` alone for
+        a problem of the fit as a whole), ``("weights", name)`` or ``("attitude_method",)``.
     """
 
     def __init__(self, samples: Samples, options: FitOptions | None = None) -> None:
@@ -535,18 +520,21 @@ class SamplesTrajectory:
         # Position: Problem PV in ECEF.
         pos = opts.position
         if n < pos.degree + 1:
-            raise ValueError(
-                f"samples: {n} samples are too few for a degree-{pos.degree} position spline "
-                f"(need >= {pos.degree + 1})"
+            raise TrajectoryError(
+                ("position", "degree"),
+                f"{n} samples are too few for a degree-{pos.degree} position spline "
+                f"(need >= {pos.degree + 1})",
             )
         bp, c = _breakpoints(pos, "position", self._duration, median_dt)
         if c.size and c.min() < 1:
-            raise ValueError(
-                f"position.continuity: must be >= 1 (continuous velocity), got {c.tolist()}"
+            raise TrajectoryError(
+                ("position", "continuity"),
+                f"must be >= 1 (continuous velocity), got {c.tolist()}",
             )
         self.position_breakpoints = bp
         w_v = _weights("velocity", w.velocity, n) if samples.v_ecef is not None else None
         w_a = _weights("acceleration", w.acceleration, n) if samples.a_ecef is not None else None
+        w_p = _weights("position", w.position, n)
         try:
             self._pos = problem_pv(
                 bp,
@@ -554,7 +542,7 @@ class SamplesTrajectory:
                 c,
                 tl,
                 samples.r_ecef,
-                _weights("position", w.position, n),
+                w_p,
                 tau_v=None if w_v is None else tl,
                 v=samples.v_ecef,
                 w_v=0.0 if w_v is None else w_v,
@@ -563,7 +551,7 @@ class SamplesTrajectory:
                 w_a=0.0 if w_a is None else w_a,
             )
         except ValueError as exc:
-            raise ValueError(f"position.{exc}") from None
+            raise _under("position", exc) from None
 
         # Attitude samples in E0 (q_B^E0 = C_E^E0(t) C_B^E), rates as omega_ib^B.
         if samples.c_b_e is not None:
@@ -586,53 +574,60 @@ class SamplesTrajectory:
         if method == "auto":
             method = "integrate" if (omega is not None and samples.c_b_e is None) else "fit"
         if method not in ("fit", "integrate"):
-            raise ValueError(
-                f"attitude_method: 'auto', 'fit' or 'integrate', got {opts.attitude_method!r}"
+            raise TrajectoryError(
+                ("attitude_method",),
+                f"'auto', 'fit' or 'integrate', got {opts.attitude_method!r}",
             )
         self.attitude_method = method
         if n < att.degree + 1:
-            raise ValueError(
-                f"samples: {n} samples are too few for a degree-{att.degree} attitude spline "
-                f"(need >= {att.degree + 1})"
+            raise TrajectoryError(
+                ("attitude", "degree"),
+                f"{n} samples are too few for a degree-{att.degree} attitude spline "
+                f"(need >= {att.degree + 1})",
+            )
+        if method == "integrate" and omega is None:
+            raise TrajectoryError(("attitude_method",), "'integrate' needs angular-rate samples")
+        if method == "integrate" and att.degree < 2:
+            raise TrajectoryError(
+                ("attitude", "degree"), "must be >= 2 with attitude_method 'integrate'"
             )
         bp, c = _breakpoints(att, "attitude", self._duration, median_dt)
         if c.size and c.min() < 0:
-            raise ValueError(f"attitude.continuity: must be >= 0, got {c.tolist()}")
+            raise TrajectoryError(("attitude", "continuity"), f"must be >= 0, got {c.tolist()}")
         self.attitude_breakpoints = bp
+        w_r = None if omega is None else _weights("rate", w.rate, n)
+        w_q = _weights("attitude", w.attitude, n) if method == "fit" else None
         try:
             if method == "fit":
-                w_r = None if omega is None else _weights("rate", w.rate, n)
+                assert w_q is not None
                 self._att = fit_quaternion(
                     bp,
                     att.degree,
                     c,
                     tl,
                     q_e0,
-                    _weights("attitude", w.attitude, n),
+                    w_q,
                     omega=omega if w_r is not None and np.any(w_r > 0) else None,
                     w_omega=0.0 if w_r is None else w_r,
                 )
             else:
-                self._att = self._integrate(tl, q_e0[0], omega, bp, c, _weights("rate", w.rate, n))
+                assert omega is not None and w_r is not None
+                self._att = self._integrate(tl, q_e0[0], omega, bp, c, w_r)
         except ValueError as exc:
-            raise ValueError(f"attitude.{exc}") from None
+            raise _under("attitude", exc) from None
 
     def _integrate(
         self,
         tl: Array,
         q0: Array,
-        omega: Array | None,
+        omega: Array,
         bp: Array,
         c: NDArray[np.int64],
         w_rate: Array,
     ) -> QuaternionSpline:
         """Problems ω, q1, q2 (rate spline of degree p − 1, continuity c − 1)."""
         opts = self.options
-        if omega is None:
-            raise ValueError("attitude_method 'integrate' needs angular-rate samples")
         p = opts.attitude.degree - 1
-        if p < 1:
-            raise ValueError("degree: must be >= 2 with attitude_method 'integrate'")
         w_spline = problem_omega(bp, p, c - 1, tl, omega, w_rate)
         self._omega_fit = w_spline
         step = opts.q_step
@@ -658,25 +653,6 @@ class SamplesTrajectory:
             SamplesTrajectory.from_arrays(t, r_ecef=r, c_b_e=c, v_body=v, omega_eb_b=w)
         """
         return cls(samples_from_arrays(t, **arrays), options)
-
-    @classmethod
-    def from_csv(
-        cls,
-        path: str | Path,
-        *,
-        columns: Mapping[str, str] | None = None,
-        rate_frame: str = "inertial",
-        options: FitOptions | None = None,
-    ) -> SamplesTrajectory:
-        """Fit the samples of a CSV file (see :func:`load_samples_csv`)."""
-        return cls(load_samples_csv(path, columns=columns, rate_frame=rate_frame), options)
-
-    @classmethod
-    def from_config(
-        cls, cfg: Mapping[str, Any], base_dir: str | Path, samples: Samples | None = None
-    ) -> SamplesTrajectory:
-        """Same as the module function :func:`from_config`."""
-        return from_config(cfg, base_dir, samples)
 
     # ----------------------------------------------------------------------------------------
     # Evaluation
@@ -769,274 +745,3 @@ class SamplesTrajectory:
                 om = om + OMEGA_IE * self.c_b_e(tl)[:, 2, :]
             out["rate"] = float(np.sqrt(np.mean(np.sum((self.omega_ib_b(tl) - om) ** 2, 1))))
         return out
-
-
-# --------------------------------------------------------------------------------------------
-# CSV and configuration
-# --------------------------------------------------------------------------------------------
-
-
-def load_samples_csv(
-    path: str | Path, *, columns: Mapping[str, str] | None = None, rate_frame: str = "inertial"
-) -> Samples:
-    """Read samples from a CSV file with a header row.
-
-    Accepted columns (units in the names; a group is all-or-nothing; other columns are
-    ignored; blank lines and lines starting with ``#`` are skipped):
-
-    ================================  ===========================================================
-    ``t`` or ``time_s``               time (s), strictly increasing (required)
-    ``lat_deg, lon_deg, alt_m``       geodetic WGS-84 position, ellipsoidal altitude — or
-    ``x_m, y_m, z_m``                 ECEF position (one of the two is required)
-    ``vn_mps, ve_mps, vd_mps``        velocity relative to the Earth, NED — or
-    ``vx_mps, vy_mps, vz_mps``        the same in ECEF (optional)
-    ``roll_deg, pitch_deg,            attitude of body FRD w.r.t. NED — or
-    heading_deg``
-    ``qw, qx, qy, qz``                quaternion ``q_B^N`` (FRD to NED, scalar first) (optional)
-    ``wx_radps, wy_radps, wz_radps``  body rate, FRD axes (optional); relative to inertial
-                                      space (gyro, ``rate_frame="inertial"``) or to the Earth
-                                      (``rate_frame="earth"``)
-    ================================  ===========================================================
-
-    Parameters
-    ----------
-    path : str or Path
-    columns : mapping, optional
-        Renames: canonical column name (above) → the header name used in the file.
-    rate_frame : {"inertial", "earth"}
-
-    Returns
-    -------
-    Samples
-
-    Raises
-    ------
-    ValueError
-        Naming the column (and row) for a missing column, a non-numeric or NaN cell, or
-        non-increasing time.
-    """
-    path = Path(path)
-    rename = dict(columns or {})
-    known = {c for group in CSV_COLUMNS.values() for c in group} | {"time_s"}
-    unknown = sorted(set(rename) - known)
-    if unknown:
-        raise ValueError(f"columns: unknown canonical column name(s) {unknown}")
-    with path.open(newline="") as fh:
-        lines = [ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")]
-    rows = list(csv.reader(lines))
-    if not rows:
-        raise ValueError(f"{path}: empty CSV (no header)")
-    header = [h.strip() for h in rows[0]]
-    index = {h: i for i, h in enumerate(header)}
-
-    def col(name: str) -> str:
-        return rename.get(name, name)
-
-    def has(name: str) -> bool:
-        return col(name) in index
-
-    def get(name: str) -> Array:
-        j = index[col(name)]
-        out = np.empty(len(rows) - 1)
-        for r, row in enumerate(rows[1:]):
-            cell = row[j].strip() if j < len(row) else ""
-            try:
-                out[r] = float(cell)
-            except ValueError:
-                raise ValueError(
-                    f"{path}: column {col(name)!r}, data row {r + 1}: not a number ({cell!r})"
-                ) from None
-            if not math.isfinite(out[r]):
-                raise ValueError(f"{path}: column {col(name)!r}, data row {r + 1}: NaN/inf value")
-        return out
-
-    def group(key: str) -> list[Array] | None:
-        names = CSV_COLUMNS[key]
-        present = [has(n) for n in names]
-        if not any(present):
-            return None
-        if not all(present):
-            missing = [col(n) for n, p in zip(names, present, strict=True) if not p]
-            raise ValueError(
-                f"{path}: missing column(s) {', '.join(missing)} (needed with "
-                f"{', '.join(col(n) for n in names if has(n))})"
-            )
-        return [get(n) for n in names]
-
-    tname = "t" if has("t") else "time_s"
-    if not has(tname):
-        raise ValueError(f"{path}: missing time column 't' (or 'time_s')")
-    t = get(tname)
-    try:
-        t = _check_time(col(tname), t)
-    except ValueError as exc:
-        raise ValueError(f"{path}: column {exc}") from None
-    kw: dict[str, Any] = {}
-    geo, ecef = group("geodetic"), group("ecef")
-    if geo is not None and ecef is not None:
-        raise ValueError(f"{path}: give lat_deg/lon_deg/alt_m or x_m/y_m/z_m, not both")
-    if geo is not None:
-        kw.update(lat=np.radians(geo[0]), lon=np.radians(geo[1]), alt=geo[2])
-    elif ecef is not None:
-        kw["r_ecef"] = np.stack(ecef, axis=-1)
-    else:
-        raise ValueError(
-            f"{path}: missing position columns lat_deg, lon_deg, alt_m (or x_m, y_m, z_m)"
-        )
-    vn, vx = group("v_ned"), group("v_ecef")
-    if vn is not None and vx is not None:
-        raise ValueError(f"{path}: give vn_mps/ve_mps/vd_mps or vx_mps/vy_mps/vz_mps, not both")
-    if vn is not None:
-        kw["v_ned"] = np.stack(vn, axis=-1)
-    elif vx is not None:
-        kw["v_ecef"] = np.stack(vx, axis=-1)
-    eul, quat = group("euler"), group("quaternion")
-    if eul is not None and quat is not None:
-        raise ValueError(f"{path}: give roll_deg/pitch_deg/heading_deg or qw/qx/qy/qz, not both")
-    if eul is not None:
-        kw.update(roll=np.radians(eul[0]), pitch=np.radians(eul[1]), heading=np.radians(eul[2]))
-    elif quat is not None:
-        kw["q_b_n"] = np.stack(quat, axis=-1)
-    rate = group("rate")
-    if rate is not None:
-        if rate_frame not in ("inertial", "earth"):
-            raise ValueError(f"rate_frame: 'inertial' or 'earth', got {rate_frame!r}")
-        kw["omega_ib_b" if rate_frame == "inertial" else "omega_eb_b"] = np.stack(rate, -1)
-    try:
-        return samples_from_arrays(t, **kw)
-    except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
-
-
-def _per_kind(cfg: Mapping[str, Any], key: str) -> dict[str, Any]:
-    """A config value that is either common or a dict ``{position: …, attitude: …}``."""
-    if key not in cfg:
-        return {}
-    value = cfg[key]
-    if isinstance(value, Mapping):
-        bad = sorted(set(value) - set(_FIT_KINDS))
-        if bad:
-            raise ValueError(f"trajectory.{key}: unknown key(s) {bad} (position, attitude)")
-        return {k: value[k] for k in _FIT_KINDS if k in value}
-    return {k: value for k in _FIT_KINDS}
-
-
-def _breaks(value: Any, where: str) -> tuple[tuple[float, int], ...]:
-    if not isinstance(value, Sequence) or isinstance(value, str):
-        raise ValueError(f"{where}: expected a list of {{t_s, continuity}}")
-    out = []
-    for i, item in enumerate(value):
-        if not isinstance(item, Mapping) or set(item) != {"t_s", "continuity"}:
-            raise ValueError(
-                f"{where}[{i}]: expected {{t_s: <s>, continuity: <int>}}, got {item!r}"
-            )
-        out.append((float(item["t_s"]), int(item["continuity"])))
-    return tuple(out)
-
-
-def from_config(
-    cfg: Mapping[str, Any], base_dir: str | Path, samples: Samples | None = None
-) -> SamplesTrajectory:
-    """Build the trajectory of a scenario's ``trajectory`` mapping of kind ``samples``.
-
-    Keys (all but ``file`` optional; ``knots``, ``degree``, ``continuity``, ``breaks`` take a
-    common value or a mapping ``{position: …, attitude: …}``):
-
-    ``kind``
-        ``samples``.
-    ``file``
-        CSV path, relative to ``base_dir`` (the scenario file's directory); columns as
-        :func:`load_samples_csv`.
-    ``columns``
-        Renames ``{canonical_name: header_in_file}``.
-    ``knots``
-        Breakpoint spacing (s), or a list of breakpoints (s since the first sample).
-        Default ``2 (degree + 1)`` median sample intervals.
-    ``degree``
-        Spline degree (default 3).
-    ``continuity``
-        ``C^c`` order at the interior breakpoints: an int (default ``degree − 1``) or a list,
-        one per interior breakpoint.
-    ``breaks``
-        Extra breakpoints ``[{t_s: 61.0, continuity: 1}, …]`` (s since the first sample).
-    ``weights``
-        ``{position: 1/m², velocity: s²/m², attitude: 1/rad², rate: s²/rad²}``
-        (``w = 1/σ²``; defaults 1, 100, 1e4, 1e4; 0 ignores that data).
-    ``attitude_method``
-        ``auto`` (default), ``fit`` or ``integrate``.
-    ``rate_frame``
-        ``inertial`` (default; ``w*_radps`` are ``ω_ib^B``) or ``earth`` (``ω_eb^B``).
-    ``q_step``
-        Problem q1 output spacing (s), default automatic.
-
-    Raises
-    ------
-    ValueError
-        Naming ``trajectory.<key>`` for unknown keys or bad values.
-    """
-    unknown = sorted(set(cfg) - set(_CONFIG_KEYS))
-    if unknown:
-        raise ValueError(
-            f"trajectory.{unknown[0]}: unknown key for kind 'samples' "
-            f"(known: {', '.join(_CONFIG_KEYS)})"
-        )
-    if cfg.get("kind", "samples") != "samples":
-        raise ValueError(f"trajectory.kind: expected 'samples', got {cfg.get('kind')!r}")
-    path = Path()
-    if samples is None:
-        if "file" not in cfg:
-            raise ValueError(
-                "trajectory.file: missing (CSV path relative to the scenario file, or `bag` and "
-                "`topic` for an Odometry topic of a bag)"
-            )
-        path = Path(cfg["file"])
-        if not path.is_absolute():
-            path = Path(base_dir) / path
-        if not path.is_file():
-            raise ValueError(f"trajectory.file: {str(path)!r} does not exist")
-    columns = cfg.get("columns")
-    if columns is not None and not isinstance(columns, Mapping):
-        raise ValueError("trajectory.columns: expected a mapping {canonical: header}")
-    specs: dict[str, dict[str, Any]] = {k: {} for k in _FIT_KINDS}
-    for key in ("knots", "degree", "continuity", "breaks"):
-        for kind, value in _per_kind(cfg, key).items():
-            if key == "degree" and (isinstance(value, bool) or not isinstance(value, int)):
-                raise ValueError(f"trajectory.degree: expected an integer, got {value!r}")
-            if key == "breaks":
-                value = _breaks(value, f"trajectory.breaks ({kind})")
-            specs[kind][key] = value
-    weights = cfg.get("weights", {})
-    if not isinstance(weights, Mapping):
-        raise ValueError("trajectory.weights: expected a mapping")
-    bad = sorted(set(weights) - set(_WEIGHT_KEYS))
-    if bad:
-        raise ValueError(f"trajectory.weights.{bad[0]}: unknown (known: {', '.join(_WEIGHT_KEYS)})")
-    for k, v in weights.items():
-        if isinstance(v, bool) or not isinstance(v, int | float) or v < 0:
-            raise ValueError(f"trajectory.weights.{k}: expected a number >= 0, got {v!r}")
-    rate_frame = cfg.get("rate_frame", "inertial")
-    if rate_frame not in ("inertial", "earth"):
-        raise ValueError(f"trajectory.rate_frame: 'inertial' or 'earth', got {rate_frame!r}")
-    method = cfg.get("attitude_method", "auto")
-    if method not in ("auto", "fit", "integrate"):
-        raise ValueError(
-            f"trajectory.attitude_method: 'auto', 'fit' or 'integrate', got {method!r}"
-        )
-    q_step = cfg.get("q_step")
-    if q_step is not None and (
-        isinstance(q_step, bool) or not isinstance(q_step, int | float) or q_step <= 0
-    ):
-        raise ValueError(f"trajectory.q_step: expected a number > 0, got {q_step!r}")
-    opts = FitOptions(
-        position=SplineOptions(**specs["position"]),
-        attitude=SplineOptions(**specs["attitude"]),
-        weights=replace(Weights(), **{k: float(v) for k, v in weights.items()}),
-        attitude_method=method,
-        q_step=None if q_step is None else float(q_step),
-    )
-    try:
-        if samples is None:
-            samples = load_samples_csv(path, columns=columns, rate_frame=rate_frame)
-        return SamplesTrajectory(samples, opts)
-    except ValueError as exc:
-        raise ValueError(f"trajectory: {exc}") from None
