@@ -95,6 +95,14 @@ __all__ = [
     "stream_fields",
     "stream_from_messages",
     "vector3_stamped_fields",
+    "BASE_LINK_FRAME",
+    "MAP_FRAME",
+    "QuaternionStampedFields",
+    "TFMessageFields",
+    "increment_fields",
+    "map_odometry_fields",
+    "quaternion_stamped_fields",
+    "tf_message_fields",
 ]
 
 #: ROS frame id of ECEF (REP-105), ``header.frame_id`` of every Odometry.
@@ -856,4 +864,176 @@ def stream_from_messages(
         v_e0=v0,
         r_e0=r0,
         gravity_model=gravity_model,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# TF, map-frame odometry and increment messages (docs/interface.md, "Frames and TF")
+# --------------------------------------------------------------------------------------------
+
+#: REP-105 frame ids of the TF tree: ``earth → map → base_link`` (docs/interface.md).
+MAP_FRAME = "map"
+BASE_LINK_FRAME = "base_link"
+
+
+@dataclass(frozen=True, eq=False)
+class TFMessageFields(_Fields):
+    """``tf2_msgs/msg/TFMessage`` of N messages, each holding the same K transforms.
+
+    Every transform of message i carries ``stamps_ns[i]``; transform k goes from
+    ``frame_ids[k]`` (parent) to ``child_frame_ids[k]``. ``translation`` (N, K, 3) m is the child
+    origin in parent axes, ``rotation`` (N, K, 4) ``x, y, z, w`` the child's attitude relative to
+    the parent (``v^parent = R(q) v^child``).
+    """
+
+    stamps_ns: I64
+    frame_ids: tuple[str, ...]
+    child_frame_ids: tuple[str, ...]
+    translation: F64
+    rotation: F64
+
+    def rows(self, start: int, stop: int) -> TFMessageFields:
+        """Messages ``start..stop-1`` (views)."""
+        return TFMessageFields(
+            self.stamps_ns[start:stop],
+            self.frame_ids,
+            self.child_frame_ids,
+            self.translation[start:stop],
+            self.rotation[start:stop],
+        )
+
+    def append(self, other: TFMessageFields) -> TFMessageFields:
+        """This container followed by ``other`` (same frame ids)."""
+        if (self.frame_ids, self.child_frame_ids) != (other.frame_ids, other.child_frame_ids):
+            raise ValueError("TFMessageFields: different frame ids")
+        return TFMessageFields(
+            np.concatenate([self.stamps_ns, other.stamps_ns]),
+            self.frame_ids,
+            self.child_frame_ids,
+            np.concatenate([self.translation, other.translation]),
+            np.concatenate([self.rotation, other.rotation]),
+        )
+
+    def check(self) -> None:
+        """Validate shapes and frame id counts; raises ValueError naming the field."""
+        n, k = len(self), len(self.frame_ids)
+        if len(self.child_frame_ids) != k:
+            raise ValueError("TFMessageFields: frame_ids and child_frame_ids differ in length")
+        for name, width in (("translation", 3), ("rotation", 4)):
+            a = np.asarray(getattr(self, name))
+            if a.shape != (n, k, width):
+                raise ValueError(
+                    f"TFMessageFields.{name}: expected shape {(n, k, width)}, got {a.shape}"
+                )
+
+
+@dataclass(frozen=True, eq=False)
+class QuaternionStampedFields(_Fields):
+    """``geometry_msgs/msg/QuaternionStamped`` of N messages: ``quaternion`` (N, 4) x, y, z, w."""
+
+    stamps_ns: I64
+    frame_id: str
+    quaternion: F64
+
+
+def tf_message_fields(
+    stamps_ns: ArrayLike,
+    frame_ids: tuple[str, ...] | list[str],
+    child_frame_ids: tuple[str, ...] | list[str],
+    translation: ArrayLike,
+    c_child_parent: ArrayLike,
+) -> TFMessageFields:
+    """TFMessage fields from translations (N, K, 3) m and DCMs ``C_child^parent`` (N, K, 3, 3).
+
+    Quaternions by :func:`quat_ros_from_dcm` (``w >= 0``).
+    """
+    t = _stamps(stamps_ns)
+    n, k = t.shape[0], len(frame_ids)
+    tr = np.asarray(translation, dtype=np.float64)
+    c = np.asarray(c_child_parent, dtype=np.float64)
+    if tr.shape != (n, k, 3) or c.shape != (n, k, 3, 3):
+        raise ValueError(
+            f"tf: expected translation {(n, k, 3)} and rotation {(n, k, 3, 3)}, got "
+            f"{tr.shape} and {c.shape}"
+        )
+    fields_ = TFMessageFields(t, tuple(frame_ids), tuple(child_frame_ids), tr, quat_ros_from_dcm(c))
+    fields_.check()
+    return fields_
+
+
+def quaternion_stamped_fields(
+    stamps_ns: ArrayLike, quaternion: ArrayLike, frame_id: str
+) -> QuaternionStampedFields:
+    """``geometry_msgs/QuaternionStamped`` fields (quaternions (N, 4) ``x, y, z, w``)."""
+    t = _stamps(stamps_ns)
+    return QuaternionStampedFields(t, frame_id, _rows(quaternion, t.shape[0], 4, "quaternion"))
+
+
+def increment_fields(
+    imu: ImuFields, period_ns: int
+) -> tuple[Vector3StampedFields, QuaternionStampedFields]:
+    """Δv and Δq messages of Imu messages, as Xsens / SBG style drivers publish them.
+
+    ``Δv = linear_acceleration · T`` (m/s, FLU; the generator's Δv to 1 ulp) and ``Δq`` = the
+    quaternion of the rotation vector ``Δα = angular_velocity · T`` (FLU;
+    ``(x, y, z, w) = (sin(θ/2) Δα/θ, cos(θ/2))``, θ = |Δα|), T = ``period_ns`` (the stream's
+    cycle). Both in the Imu's frame and stamped like it (``t_m``, end of the cycle).
+    """
+    t = _stamps(imu.stamps_ns)
+    if int(period_ns) <= 0:
+        raise ValueError(f"period_ns must be > 0, got {period_ns}")
+    period = int(period_ns) * 1e-9
+    da = np.asarray(imu.angular_velocity, dtype=np.float64) * period
+    dv = np.asarray(imu.linear_acceleration, dtype=np.float64) * period
+    theta = np.linalg.norm(da, axis=1)
+    half = 0.5 * theta
+    # sin(θ/2)/θ without the 0/0 at θ = 0 (series below 1e-4 rad: exact to round-off)
+    small = theta < 1e-4
+    ratio = np.where(small, 0.5 - theta**2 / 48.0, np.sin(half) / np.where(small, 1.0, theta))
+    q = np.concatenate([da * ratio[:, None], np.cos(half)[:, None]], axis=1)
+    return (
+        Vector3StampedFields(t, imu.frame_id, dv),
+        QuaternionStampedFields(t, imu.frame_id, q),
+    )
+
+
+def map_odometry_fields(
+    odom: OdometryFields,
+    r0_e: ArrayLike,
+    c_map_e: ArrayLike,
+    map_frame: str = MAP_FRAME,
+) -> OdometryFields:
+    """Odometry in ``map`` (ENU at a datum) of ECEF Odometry fields (REP-105 ``map`` pose).
+
+    ``position = C_E^map (r^E − r0^E)``; ``orientation`` = ``C_FLU^map = C_E^map C_FLU^E``;
+    the twist (body axes) is copied unchanged. Pose covariance: zeros (unknown) and ``[−1, …]``
+    (not provided) are kept; a given 6×6 covariance is rotated into map axes,
+    ``P' = diag(C, C) P diag(C, C)ᵀ`` with ``C = C_E^map``. ``r0_e`` (3,) m, ``c_map_e`` =
+    ``C_map^E`` (3, 3) (:class:`strapdown_ros.core.frames.Datum`).
+    """
+    c_map_e = np.asarray(c_map_e, dtype=np.float64)
+    c = c_map_e.T  # C_E^map
+    pos = (np.asarray(odom.position, dtype=np.float64) - np.asarray(r0_e)) @ c_map_e
+    c_flu_e = dcm_from_quat_ros(odom.orientation)
+    cov = np.asarray(odom.pose_covariance)
+    if cov.shape[0] and cov.strides[0] == 0 and (not cov[0].any() or cov[0, 0] == -1.0):
+        pose_cov = cov  # unknown / not provided: unchanged (broadcast view)
+    else:
+        rot = np.zeros((6, 6))
+        rot[:3, :3] = rot[3:, 3:] = c
+        p = cov.reshape(-1, 6, 6)
+        given = p[:, 0, 0] != -1.0
+        out = p.copy()
+        out[given] = rot @ p[given] @ rot.T
+        pose_cov = out.reshape(-1, 36)
+    return OdometryFields(
+        stamps_ns=odom.stamps_ns,
+        frame_id=map_frame,
+        child_frame_id=odom.child_frame_id,
+        position=pos,
+        orientation=quat_ros_from_dcm(c @ c_flu_e),
+        pose_covariance=pose_cov,
+        twist_linear=odom.twist_linear,
+        twist_angular=odom.twist_angular,
+        twist_covariance=odom.twist_covariance,
     )

@@ -15,7 +15,9 @@ byte-identical to ``rosbags.typesys`` ``serialize_cdr`` of the ``ROS2_JAZZY`` st
 Supported types: ``sensor_msgs/msg/Imu``, ``nav_msgs/msg/Odometry``,
 ``sensor_msgs/msg/NavSatFix``, ``rosgraph_msgs/msg/Clock``, ``geometry_msgs/msg/Vector3Stamped``;
 for the aiding sensors ``geometry_msgs/msg/TwistWithCovarianceStamped``,
-``sensor_msgs/msg/FluidPressure`` and ``sensor_msgs/msg/MagneticField``.
+``sensor_msgs/msg/FluidPressure`` and ``sensor_msgs/msg/MagneticField``; for TF and the
+increment topics ``tf2_msgs/msg/TFMessage`` (a fixed number K of transforms per topic: the
+sequence length is part of the layout) and ``geometry_msgs/msg/QuaternionStamped``.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ from strapdown_ros.messages import (
     MagneticFieldFields,
     NavSatFixFields,
     OdometryFields,
+    QuaternionStampedFields,
+    TFMessageFields,
     TwistWithCovarianceStampedFields,
     Vector3StampedFields,
     stamps_to_sec_nanosec,
@@ -50,6 +54,8 @@ __all__ = [
     "MSGTYPES",
     "NAVSATFIX",
     "ODOMETRY",
+    "QUATERNION_STAMPED",
+    "TF_MESSAGE",
     "VECTOR3_STAMPED",
     "CdrError",
     "deserialize",
@@ -66,6 +72,8 @@ MAGNETIC_FIELD = "sensor_msgs/msg/MagneticField"
 ODOMETRY = "nav_msgs/msg/Odometry"
 NAVSATFIX = "sensor_msgs/msg/NavSatFix"
 CLOCK = "rosgraph_msgs/msg/Clock"
+QUATERNION_STAMPED = "geometry_msgs/msg/QuaternionStamped"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
 
 #: CDR_LE representation identifier + zero options.
@@ -200,6 +208,10 @@ class Codec:
     strings: Callable[[object], tuple[str, ...]]
     pack: Callable[[np.ndarray, object], None]
     unpack: Callable[[np.ndarray, NDArray[np.int64], tuple[str, ...]], object]
+    #: Layout items of a field container / of a payload, for types whose item list varies
+    #: (TFMessage: one block per transform); None: ``items`` for every message.
+    items_for: Callable[[object], tuple[Item, ...]] | None = None
+    items_of_payload: Callable[[bytes | memoryview], tuple[Item, ...]] | None = None
 
 
 def _stamps_from(arr: np.ndarray) -> NDArray[np.int64]:
@@ -334,6 +346,75 @@ def _unpack_mag(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> Ma
     return MagneticFieldFields(t, s[0], d[:, 0:3], d[:, 3:12])
 
 
+def _pack_quat(arr: np.ndarray, f: QuaternionStampedFields) -> None:
+    arr["d"] = f.quaternion
+
+
+def _unpack_quat(
+    arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]
+) -> QuaternionStampedFields:
+    return QuaternionStampedFields(t, s[0], np.ascontiguousarray(arr["d"]))
+
+
+def _tf_items(k: int) -> tuple[Item, ...]:
+    """TFMessage with k transforms: sequence length, then per transform its header (stamp,
+    frame id), child frame id, translation and rotation (7 float64).
+
+    Transform 0's stamp is ``sec``/``nanosec`` (the message stamp), the others
+    ``sec{i}``/``nanosec{i}``.
+    """
+    items: list[Item] = [("count", "<u4", 1)]
+    for i in range(k):
+        sfx = "" if i == 0 else str(i)
+        items += [
+            (f"sec{sfx}", "<i4", 1),
+            (f"nanosec{sfx}", "<u4", 1),
+            (f"frame_id{i}", "str", 1),
+            (f"child_frame_id{i}", "str", 1),
+            (f"d{i}", "<f8", 7),
+        ]
+    return tuple(items)
+
+
+def _tf_items_of_payload(payload: bytes | memoryview) -> tuple[Item, ...]:
+    buf = memoryview(payload)
+    if len(buf) < _HEADER + 4:
+        raise CdrError(f"TFMessage payload of {len(buf)} bytes is too short")
+    (k,) = struct.unpack_from("<I", buf, _HEADER)
+    if not 1 <= k <= 4096:
+        raise CdrError(f"TFMessage with {k} transforms is not supported (1..4096)")
+    return _tf_items(int(k))
+
+
+def _tf_strings(f: TFMessageFields) -> tuple[str, ...]:
+    return tuple(s for pair in zip(f.frame_ids, f.child_frame_ids, strict=True) for s in pair)
+
+
+def _pack_tf(arr: np.ndarray, f: TFMessageFields) -> None:
+    k = len(f.frame_ids)
+    arr["count"] = k
+    sec, nsec = stamps_to_sec_nanosec(f.stamps_ns)
+    for i in range(k):
+        if i:
+            arr[f"sec{i}"] = sec
+            arr[f"nanosec{i}"] = nsec
+        d = arr[f"d{i}"]
+        d[:, 0:3] = f.translation[:, i]
+        d[:, 3:7] = f.rotation[:, i]
+
+
+def _unpack_tf(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> TFMessageFields:
+    k = len(s) // 2
+    n = t.shape[0]
+    tr = np.empty((n, k, 3))
+    rot = np.empty((n, k, 4))
+    for i in range(k):
+        d = arr[f"d{i}"]
+        tr[:, i] = d[:, 0:3]
+        rot[:, i] = d[:, 3:7]
+    return TFMessageFields(t, tuple(s[0::2]), tuple(s[1::2]), tr, rot)
+
+
 MSGTYPES: dict[str, Codec] = {
     IMU: Codec(
         IMU,
@@ -407,6 +488,25 @@ MSGTYPES: dict[str, Codec] = {
         _pack_mag,
         _unpack_mag,  # type: ignore[arg-type]
     ),
+    # TF and increment topics (docs/interface.md)
+    QUATERNION_STAMPED: Codec(
+        QUATERNION_STAMPED,
+        QuaternionStampedFields,
+        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 4)),
+        lambda f: (f.frame_id,),
+        _pack_quat,  # type: ignore[arg-type]
+        _unpack_quat,
+    ),
+    TF_MESSAGE: Codec(
+        TF_MESSAGE,
+        TFMessageFields,
+        _tf_items(1),
+        _tf_strings,  # type: ignore[arg-type]
+        _pack_tf,  # type: ignore[arg-type]
+        _unpack_tf,
+        items_for=lambda f: _tf_items(len(f.frame_ids)),  # type: ignore[attr-defined]
+        items_of_payload=_tf_items_of_payload,
+    ),
 }
 
 _BY_FIELDS = {c.fields_type: c for c in MSGTYPES.values()}
@@ -422,7 +522,10 @@ def msgtype_of(fields: object) -> str:
 
 def layout_of(msgtype: str, strings: Sequence[str]) -> Layout:
     """Layout of ``msgtype`` with the given string values (frame ids in field order)."""
-    return build_layout(_codec(msgtype).items, strings)
+    codec = _codec(msgtype)
+    if codec.items_for is not None:  # TFMessage: one (frame_id, child_frame_id) per transform
+        return build_layout(_tf_items(len(strings) // 2), strings)
+    return build_layout(codec.items, strings)
 
 
 def _codec(msgtype: str) -> Codec:
@@ -449,7 +552,8 @@ def _prepare(fields: object) -> tuple[Codec, Layout]:
     if codec is None:
         raise TypeError(f"no CDR codec for {type(fields).__name__}")
     fields.check()  # type: ignore[attr-defined]
-    return codec, build_layout(codec.items, codec.strings(fields))
+    items = codec.items if codec.items_for is None else codec.items_for(fields)
+    return codec, build_layout(items, codec.strings(fields))
 
 
 def _blank(n: int, layout: Layout) -> NDArray[np.uint8]:
@@ -478,7 +582,7 @@ def _rows_of(fields: object, start: int, stop: int) -> object:
     kw = {}
     for f in dataclass_fields(fields):  # type: ignore[arg-type]
         v = getattr(fields, f.name)
-        kw[f.name] = v if isinstance(v, str) else v[start:stop]
+        kw[f.name] = v if isinstance(v, str | tuple) else v[start:stop]  # tuple: TF frame ids
     return type(fields)(**kw)
 
 
@@ -534,8 +638,11 @@ def deserialize(msgtype: str, payloads: Sequence[bytes | memoryview]) -> object:
         layout = build_layout(codec.items, [""] * sum(k == "str" for _, k, _ in codec.items))
         arr = np.zeros(0, dtype=layout.dtype)
         return codec.unpack(arr, np.zeros(0, np.int64), layout.strings)
-    strings = _read_strings(payloads[0], codec.items)
-    layout = build_layout(codec.items, strings)
+    items = codec.items
+    if codec.items_of_payload is not None:
+        items = codec.items_of_payload(payloads[0])
+    strings = _read_strings(payloads[0], items)
+    layout = build_layout(items, strings)
     size = layout.size
     lengths = np.fromiter(map(len, payloads), dtype=np.int64, count=n)
     if np.all(lengths == size):

@@ -1,0 +1,330 @@
+"""TF, map-frame odometry and increment topics derived from a stage's messages.
+
+:class:`FramesStage` turns the serialized output of the other stages into the messages ROS
+tools expect (docs/interface.md, "Frames and TF"): ``/tf_static`` (``earth → map``,
+``base_link → reference_imu``, ``base_link → variation_imu`` when its offsets are constant),
+``/tf`` (``map → base_link`` from the reference truth, ``base_link → variation_imu`` from the
+variation's offsets, ``map → <navigator frame>`` from the navigation solution), map-frame
+``nav_msgs/Odometry`` beside each ECEF Odometry topic, and optional Δv / Δq topics beside each
+Imu topic. Every output message depends on one input message only (and the scenario), so
+``generate`` and the nodes, feeding any chunking, produce identical bytes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.batches import Batch, batch
+from strapdown_ros.config import Scenario
+from strapdown_ros.config.tf import tf_spec
+from strapdown_ros.core.frames import Datum, sensor_in_body
+from strapdown_ros.core.variation import OffsetArrays
+from strapdown_ros.messages import (
+    BASE_LINK_FRAME,
+    MAP_FRAME,
+    OdometryFields,
+    dcm_from_quat_ros,
+    increment_fields,
+    map_odometry_fields,
+    tf_message_fields,
+)
+
+__all__ = [
+    "DERIVED_TOPICS",
+    "EXTRA_FRAMES",
+    "TF_TOPICS",
+    "FramesStage",
+    "IMU_KEYS",
+    "ODOM_KEYS",
+    "scenario_datum",
+]
+
+#: recording.topics key of each ECEF Odometry topic and of its map-frame twin.
+ODOM_KEYS = ("reference_odom", "variation_odom", "variation_reference_odom", "navigator_odom")
+#: recording.topics keys of the Imu topics that get Δv / Δq twins.
+IMU_KEYS = ("reference_imu", "variation_imu", "variation_reference_imu", "variation_imu_measured")
+
+#: Suffix of each derived topic's name on its source topic (``recording.topics`` key → (source
+#: key, suffix)); the name is ``recording.topics[key]`` when given, else source name + suffix.
+DERIVED_TOPICS: dict[str, tuple[str, str]] = {
+    **{f"{k}_map": (k, "_map") for k in ODOM_KEYS},
+    **{f"{k}_{d}": (k, f"_{d}") for k in IMU_KEYS for d in ("dv", "dq")},
+}
+#: Default names of the TF topics (``recording.topics`` keys ``tf``, ``tf_static``).
+TF_TOPICS: dict[str, str] = {"tf": "/tf", "tf_static": "/tf_static"}
+#: Default frame ids this stage adds (recording.frames keys).
+EXTRA_FRAMES: dict[str, str] = {"map": MAP_FRAME, "base_link": BASE_LINK_FRAME}
+
+
+def _topic(scenario: Scenario, key: str) -> str:
+    topics = scenario.recording.topics
+    if key in topics:
+        return topics[key]
+    if key in TF_TOPICS:
+        return TF_TOPICS[key]
+    source, suffix = DERIVED_TOPICS[key]
+    return topics[source] + suffix
+
+
+def _frame(scenario: Scenario, key: str) -> str:
+    frames = scenario.recording.frames
+    return frames[key] if key in frames else EXTRA_FRAMES[key]
+
+
+def scenario_datum(scenario: Scenario) -> Datum:
+    """The ``map`` datum: ``tf.datum``, else the initial position (``initial``, else the
+    trajectory's position at t0)."""
+    spec = tf_spec(scenario).datum
+    if spec is not None:
+        lat, lon, alt = spec.latitude_deg, spec.longitude_deg, spec.altitude_m
+    elif scenario.initial is not None:
+        ini = scenario.initial
+        lat, lon, alt = ini.latitude_deg, ini.longitude_deg, ini.altitude_m
+    else:
+        from strapdown_ros.stages.reference import build_trajectory
+
+        trajectory = build_trajectory(scenario)
+        if trajectory is None:  # kind increments always has `initial`
+            raise ValueError("the scenario has no initial position for the map datum")
+        truth = trajectory.local_truth(np.zeros(1))
+        return Datum.at(float(truth.lat[0]), float(truth.lon[0]), float(truth.alt[0]))
+    return Datum.at(np.radians(lat), np.radians(lon), alt)
+
+
+@dataclass(frozen=True)
+class _Settings:
+    t0_ns: int
+    period_ns: int
+    body_period_ns: int
+    navigator_period_ns: int | None
+    tf: bool
+    map_odometry: bool
+    increments: bool
+
+
+class FramesStage:
+    """Derived TF / map-frame / increment batches of a scenario's message batches.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    offsets : OffsetArrays or None
+        The variation's offsets on the output cycle grid (FRD, as the variation used them);
+        None: computed from the scenario when a variation topic is fed (``cycles`` needed).
+    cycles : int or None
+        Output cycles of the run (for the offsets).
+    datum : Datum or None
+        Default :func:`scenario_datum`.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        offsets: OffsetArrays | None = None,
+        cycles: int | None = None,
+        datum: Datum | None = None,
+    ) -> None:
+        spec = tf_spec(scenario)
+        self.scenario = scenario
+        self.datum = datum if datum is not None else scenario_datum(scenario)
+        nav_period = None
+        if scenario.navigator is not None:
+            from strapdown_ros.config.navigator import navigator_spec
+
+            nav = navigator_spec(scenario)
+            if nav is not None:
+                nav_period = scenario.period_ns * nav.n
+                if spec.navigator_rate_hz is not None:
+                    nav_period = int(round(1e9 / spec.navigator_rate_hz))
+        body = scenario.period_ns
+        if spec.body_rate_hz is not None:
+            body = int(round(1e9 / spec.body_rate_hz))
+        self.settings = _Settings(
+            t0_ns=scenario.start_time_ns,
+            period_ns=scenario.period_ns,
+            body_period_ns=body,
+            navigator_period_ns=nav_period,
+            tf=spec.enabled,
+            map_odometry=spec.map_odometry,
+            increments=bool(getattr(scenario.recording, "increments", False)),
+        )
+        self.frames = {k: _frame(scenario, k) for k in ("earth", "map", "base_link")}
+        self.frames["reference_imu"] = _frame(scenario, "reference_imu")
+        self.frames["variation_imu"] = _frame(scenario, "variation_imu")
+        self._offsets = offsets
+        self._cycles = cycles
+        self._static_variation: tuple[np.ndarray, np.ndarray] | None = None
+        self._variation_checked = False
+        self.odom_topics = {_topic(scenario, k): k for k in ODOM_KEYS}
+        self.imu_topics = {_topic(scenario, k): k for k in IMU_KEYS}
+
+    # -- configuration ---------------------------------------------------------------------
+
+    @property
+    def tf_topic(self) -> str:
+        return _topic(self.scenario, "tf")
+
+    @property
+    def tf_static_topic(self) -> str:
+        return _topic(self.scenario, "tf_static")
+
+    def topics(self, produced: Mapping[str, str]) -> dict[str, str]:
+        """The topics (name → type) this stage adds for the scenario's ``produced`` topics
+        (``topics.produced_topics``: name → type), in the order it writes them."""
+        out: dict[str, str] = {}
+        s = self.settings
+        if s.tf:
+            out[self.tf_static_topic] = cdr.TF_MESSAGE
+            out[self.tf_topic] = cdr.TF_MESSAGE
+        for topic in produced:
+            key = self.odom_topics.get(topic)
+            if key is not None and s.map_odometry:
+                out[_topic(self.scenario, f"{key}_map")] = cdr.ODOMETRY
+            key = self.imu_topics.get(topic)
+            if key is not None and s.increments:
+                out[_topic(self.scenario, f"{key}_dv")] = cdr.VECTOR3_STAMPED
+                out[_topic(self.scenario, f"{key}_dq")] = cdr.QUATERNION_STAMPED
+        return out
+
+    # -- offsets of the variation ----------------------------------------------------------
+
+    def _variation_offsets(self, m_max: int) -> OffsetArrays:
+        if self._offsets is None or len(self._offsets) <= m_max:
+            from strapdown_ros.stages.variation import scenario_offsets
+
+            cycles = max(m_max, self._cycles or 0)
+            self._offsets = scenario_offsets(self.scenario, cycles + 1)
+        return self._offsets
+
+    def variation_is_static(self) -> bool:
+        """Whether ``base_link → variation_imu`` is constant over the run (then in /tf_static)."""
+        if self.scenario.variation is None:
+            return False
+        if not self._variation_checked:
+            self._variation_checked = True
+            if self._offsets is None and self._cycles is None:
+                return False
+            o = self._variation_offsets(0)
+            const = all(
+                np.array_equal(a, np.broadcast_to(a[:1], a.shape))
+                for a in (o.lever_arm, o.displacement, o.c_bvar_bref)
+            )
+            if const:
+                self._static_variation = sensor_in_body(
+                    o.lever_arm[:1], o.displacement[:1], o.c_bvar_bref[:1]
+                )
+        return self._static_variation is not None
+
+    # -- batches ---------------------------------------------------------------------------
+
+    def static_batch(self) -> Batch | None:
+        """``/tf_static`` (one message at the start stamp t0), None when TF is off."""
+        if not self.settings.tf:
+            return None
+        f = self.frames
+        parents = [f["earth"], f["base_link"]]
+        children = [f["map"], f["reference_imu"]]
+        translation = [self.datum.r0_e, np.zeros(3)]
+        rotation = [self.datum.c_map_e, np.eye(3)]
+        if self.variation_is_static():
+            assert self._static_variation is not None
+            p, c = self._static_variation
+            parents.append(f["base_link"])
+            children.append(f["variation_imu"])
+            translation.append(p[0])
+            rotation.append(c[0])
+        fields = tf_message_fields(
+            np.array([self.settings.t0_ns], dtype=np.int64),
+            parents,
+            children,
+            np.asarray(translation)[None],
+            np.asarray(rotation)[None],
+        )
+        return batch(self.tf_static_topic, fields)
+
+    def _decimated(self, stamps: np.ndarray, period_ns: int) -> np.ndarray:
+        return np.flatnonzero((stamps - self.settings.t0_ns) % period_ns == 0)
+
+    def _odometry(self, key: str, fields: OdometryFields) -> list[Batch]:
+        out: list[Batch] = []
+        s = self.settings
+        if fields.frame_id != self.frames["earth"] or not len(fields):
+            return out
+        if s.map_odometry:
+            out.append(
+                batch(
+                    _topic(self.scenario, f"{key}_map"),
+                    map_odometry_fields(
+                        fields, self.datum.r0_e, self.datum.c_map_e, self.frames["map"]
+                    ),
+                )
+            )
+        if not s.tf:
+            return out
+        stamps = np.asarray(fields.stamps_ns, dtype=np.int64)
+        if key == "reference_odom":
+            rows = self._decimated(stamps, s.body_period_ns)
+            child = self.frames["base_link"]
+        elif key == "navigator_odom" and s.navigator_period_ns:
+            rows = self._decimated(stamps, s.navigator_period_ns)
+            child = fields.child_frame_id
+        elif key == "variation_odom":
+            return out + self._variation_tf(stamps)
+        else:
+            return out
+        if not rows.size:
+            return out
+        c_flu_e = dcm_from_quat_ros(np.asarray(fields.orientation)[rows])
+        pos = self.datum.to_map(np.asarray(fields.position)[rows])
+        tf = tf_message_fields(
+            stamps[rows],
+            [self.frames["map"]],
+            [child],
+            pos[:, None],
+            (self.datum.c_map_e.T @ c_flu_e)[:, None],
+        )
+        out.append(batch(self.tf_topic, tf))
+        return out
+
+    def _variation_tf(self, stamps: np.ndarray) -> list[Batch]:
+        s = self.settings
+        if self.variation_is_static():
+            return []
+        rows = self._decimated(stamps, s.body_period_ns)
+        if not rows.size:
+            return []
+        m = (stamps[rows] - s.t0_ns) // s.period_ns
+        o = self._variation_offsets(int(m.max()))
+        p, c = sensor_in_body(o.lever_arm[m], o.displacement[m], o.c_bvar_bref[m])
+        tf = tf_message_fields(
+            stamps[rows],
+            [self.frames["base_link"]],
+            [self.frames["variation_imu"]],
+            p[:, None],
+            c[:, None],
+        )
+        return [batch(self.tf_topic, tf)]
+
+    def feed_batches(self, batches: list[Batch]) -> list[Batch]:
+        """The derived batches of ``batches`` (topics not concerned are ignored)."""
+        out: list[Batch] = []
+        for b in batches:
+            if not len(b.payloads):
+                continue
+            key = self.odom_topics.get(b.topic)
+            if key is not None and b.msgtype == cdr.ODOMETRY:
+                fields = cdr.deserialize(cdr.ODOMETRY, b.payloads)
+                out += self._odometry(key, fields)  # type: ignore[arg-type]
+                continue
+            key = self.imu_topics.get(b.topic)
+            if key is not None and b.msgtype == cdr.IMU and self.settings.increments:
+                imu = cdr.deserialize(cdr.IMU, b.payloads)
+                dv, dq = increment_fields(imu, self.settings.period_ns)  # type: ignore[arg-type]
+                out.append(batch(_topic(self.scenario, f"{key}_dv"), dv))
+                out.append(batch(_topic(self.scenario, f"{key}_dq"), dq))
+        return out
