@@ -47,14 +47,16 @@ ICAO_LAYERS = (
 
 
 def _layer_bases() -> tuple[Array, Array, Array, Array]:
-    """Base H, gradient β, base temperature and base pressure of each layer."""
+    """Reference H, gradient β, temperature and pressure of each layer.
+
+    The references are the layer bases, except for the bottom layer, referred to sea level
+    (H = 0, T₀, p₀) so that the sea-level pressure is p₀ exactly.
+    """
     h_b = np.array([h for h, _ in ICAO_LAYERS])
     beta = np.array([b for _, b in ICAO_LAYERS])
     t_b = np.empty_like(h_b)
     p_b = np.empty_like(h_b)
-    # Temperatures and pressures at the bases, from sea level (H = 0 lies in layer 0).
-    t_b[0] = T0_K + beta[0] * (h_b[0] - 0.0)
-    p_b[0] = _layer_pressure(P0_PA, T0_K, beta[0], 0.0, np.array(h_b[0]))
+    h_b[0], t_b[0], p_b[0] = 0.0, T0_K, P0_PA
     for i in range(1, len(h_b)):
         t_b[i] = t_b[i - 1] + beta[i - 1] * (h_b[i] - h_b[i - 1])
         p_b[i] = _layer_pressure(p_b[i - 1], t_b[i - 1], beta[i - 1], h_b[i - 1], np.array(h_b[i]))
@@ -85,7 +87,7 @@ def icao_pressure(h: ArrayLike) -> Array:
     """
     hp = geopotential_altitude(h)
     h_b, beta, t_b, p_b = _BASES
-    layer = np.clip(np.searchsorted(h_b, hp, side="right") - 1, 0, len(h_b) - 1)
+    layer = np.clip(np.searchsorted(h_b, hp, side="right") - 1, 0, len(h_b) - 1)  # H < 0: 0
     out = np.empty_like(hp)
     for i in range(len(h_b)):
         sel = layer == i
