@@ -16,6 +16,7 @@ VENV_ABS     := $(CURDIR)/$(VENV)
 VPY          := $(VENV_ABS)/bin/python
 SETUP_STAMP  := $(VENV)/.setup.stamp
 PREFIX_STAMP := $(VENV)/.ament-prefix.stamp
+TF2_STAMP    := $(VENV)/.tf2_msgs.stamp
 REQUIREMENTS := requirements/base.txt requirements/dev.txt requirements/constraints.txt
 CONSTRAINTS  := -c requirements/constraints.txt
 # Files installed under .venv/share/strapdown_ros (re-run the prefix step when they change).
@@ -41,7 +42,7 @@ help:
 	@echo "make clean      remove outputs and caches; make distclean also removes .venv"
 	@echo "PYTHON=$(PYTHON)"
 
-setup: $(SETUP_STAMP) $(PREFIX_STAMP)
+setup: $(SETUP_STAMP) $(PREFIX_STAMP) $(TF2_STAMP)
 
 $(SETUP_STAMP): $(REQUIREMENTS) setup.py setup.cfg
 	@if [ ! -x "$(VPY)" ]; then \
@@ -55,6 +56,12 @@ $(SETUP_STAMP): $(REQUIREMENTS) setup.py setup.cfg
 
 $(PREFIX_STAMP): $(SETUP_STAMP) tools/install_ament_prefix.py $(SHARE_FILES)
 	$(VPY) tools/install_ament_prefix.py --symlink
+	@touch $@
+
+# tf2_msgs/msg/TFMessage (not in the ROS PyPI wheels) built into .venv for live TF; needs cmake
+# and a C compiler, ~1 min. Without them it says why and setup goes on (live TF off).
+$(TF2_STAMP): $(SETUP_STAMP) tools/build_tf2_msgs.py requirements/tf2_build.txt
+	$(VPY) tools/build_tf2_msgs.py --optional
 	@touch $@
 
 lint: setup
