@@ -256,7 +256,10 @@ def read_bag(
             try:
                 data.fields = cdr.deserialize(msgtype, payloads[topic])
             except cdr.CdrError as exc:
-                raise BagReadError(f"bag {path}, topic {topic}: {exc}") from exc
+                if msgtype != cdr.TF_MESSAGE:
+                    raise BagReadError(f"bag {path}, topic {topic}: {exc}") from exc
+                # /tf mixes transforms of several frame pairs: kept as payloads (messages.md)
+                data.payloads = payloads[topic]
             if raw:
                 data.payloads = payloads[topic]
         else:
