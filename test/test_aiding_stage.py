@@ -21,7 +21,12 @@ from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.config import load_scenario
 from strapdown_ros.config.aiding import AidingSpec
 from strapdown_ros.config.base import validate_section
-from strapdown_ros.stages.aiding import NOT_MEASURED_VARIANCE, AidingStream, igrf_coefficients
+from strapdown_ros.stages.aiding import (
+    NOT_MEASURED_VARIANCE,
+    AidingStream,
+    aiding_expected_counts,
+    igrf_coefficients,
+)
 from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
 
 REPO = Path(__file__).resolve().parent.parent
@@ -356,3 +361,11 @@ def test_covariances_are_the_models(scenario, reference):
     period = 0.02
     assert wheel.covariance[0, 0] == spec.wheel_odometer.errors().variance(period)
     assert math.isclose(wheel.covariance[0, 0], 0.02**2 + (1 / 48 / period) ** 2 / 6)
+
+
+def test_expected_counts(ideal_bag, scenario):
+    """aiding_expected_counts (the live pipeline's expectation) = what the stage wrote."""
+    cycles = len(ideal_bag["/reference/odom"]) - 1
+    expected = aiding_expected_counts(scenario, cycles, _spec(_ideal()))
+    assert expected == {t: len(ideal_bag.topics[t]) for t in expected}
+    assert set(expected) == {"/gnss/fix", "/gnss/vel", "/baro/pressure", "/mag", "/wheel/twist"}

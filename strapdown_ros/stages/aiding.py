@@ -63,6 +63,7 @@ __all__ = [
     "AidingOutput",
     "AidingStream",
     "TruthRows",
+    "aiding_expected_counts",
     "aiding_spec",
     "epochs_in",
     "igrf_coefficients",
@@ -460,3 +461,37 @@ def epochs_in(start_ns: int, stop_ns: int, period_ns: int) -> int:
     if stop_ns < start_ns:
         return 0
     return stop_ns // period_ns - (-(-start_ns // period_ns)) + 1
+
+
+def aiding_expected_counts(scenario: Scenario, cycles: int, spec: AidingSpec | None = None
+                           ) -> dict[str, int]:  # fmt: skip
+    """Messages per aiding topic for truth cycles 0..``cycles`` (what ``generate`` writes).
+
+    Epochs in ``[t0, t0 + cycles T]``; GNSS: minus the epochs inside outages and those whose
+    release time ``stamp + latency`` is after the last truth stamp.
+    """
+    spec = spec if spec is not None else aiding_spec(scenario)
+    if spec is None:
+        return {}
+    t0 = scenario.start_time_ns
+    t_end = t0 + cycles * scenario.period_ns
+    out: dict[str, int] = {}
+    sensors = spec.sensors()
+    for key, topics in (("gnss", ("gnss_fix", "gnss_vel")), ("barometer", ("baro",)),
+                        ("magnetometer", ("mag",)), ("wheel_odometer", ("wheel",))):  # fmt: skip
+        sensor = sensors.get(key)
+        if sensor is None:
+            continue
+        p = sensor.period_ns
+        if isinstance(sensor, GnssSpec):
+            k = np.arange(-(-t0 // p), (t_end - sensor.latency_ns) // p + 1)
+            stamps = k * p
+            keep = np.ones(len(stamps), dtype=bool)
+            for a, b in sensor.outage_windows_ns(t0):
+                keep &= ~((stamps >= a) & (stamps < b))
+            n = int(np.count_nonzero(keep))
+        else:
+            n = epochs_in(t0, t_end, p)
+        for t in topics:
+            out[AIDING_TOPICS[t]] = n
+    return out
