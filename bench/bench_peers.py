@@ -67,6 +67,7 @@ VELOCITY_MEAN = [5.0, -3.0, 0.2]  # m/s NED
 #: attitude; knots at the default spacing (8 sample intervals).
 FIT_CONFIG = {
     "kind": "samples",
+    "file": "pyins_truth.csv",  # never read: the samples are handed over as arrays
     "weights": {"position": 1.0e6, "velocity": 1.0e6, "attitude": 1.0e10},
 }
 TRUTH_COLS = ["lat", "lon", "alt", "VN", "VE", "VD", "roll", "pitch", "heading"]
@@ -192,7 +193,7 @@ def main(argv: list[str] | None = None) -> float:
             lat=a[:, 0] * d2r, lon=a[:, 1] * d2r, alt=a[:, 2], v_ned=a[:, 3:6],
             roll=a[:, 6] * d2r, pitch=a[:, 7] * d2r, heading=a[:, 8] * d2r,
         )  # fmt: skip
-        traj = SamplesTrajectory.from_config(scenario.trajectory, REPO, samples)
+        traj = SamplesTrajectory(samples, scenario.trajectory.fit_options())
         return traj, generate_reference(scenario, traj)
 
     coarse_on = args.coarse > 1 and args.coarse != args.every

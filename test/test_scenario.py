@@ -151,3 +151,76 @@ def test_variation_method_and_gravity_are_checked_at_load():
                          ({"lever_arm_m": [1, 2]}, "variation.lever_arm_m")):  # fmt: skip
         assert error_of(with_(variation=section)).key == key
     assert parse_scenario(with_(variation={"method": 1, "lever_arm_m": [1, 0, 0]})).variation
+
+
+# -- trajectory section (config/trajectory.py) ---------------------------------------------------
+
+
+def test_trajectory_kinds_load_typed_with_their_defaults():
+    from strapdown_ros.config.trajectory import (
+        ConingTrajectorySpec,
+        IncrementsTrajectorySpec,
+        SamplesTrajectorySpec,
+        SegmentsTrajectorySpec,
+    )
+
+    seg = parse_scenario(BASE).trajectory
+    assert isinstance(seg, SegmentsTrajectorySpec) and seg.natural_duration == 10.0
+    s0 = seg.segments[0]
+    assert (s0.roll_rate_dps, s0.accel_mps2, s0.climb_rate_mps, s0.transition_s) == (
+        0.0, None, None, None)  # fmt: skip
+    assert s0.core_segment().blend == 1.0  # min(1, duration / 2)
+    inc = parse_scenario(with_(trajectory={"kind": "increments", "segments": [
+        {"duration_s": 2}, {"duration_s": 0.5, "omega_dps": [0, 0, 180]}]})).trajectory  # fmt: skip
+    assert isinstance(inc, IncrementsTrajectorySpec) and inc.natural_duration == 2.5
+    assert inc.core_segments()[1].omega[2] == pytest.approx(3.141592653589793)
+    con = parse_scenario(with_(trajectory={"kind": "coning"})).trajectory
+    assert isinstance(con, ConingTrajectorySpec) and con.coning.duration_s == 300.0
+    sam = parse_scenario({"rate_hz": 100, "trajectory": {"kind": "samples", "bag": "b"}})
+    assert isinstance(sam.trajectory, SamplesTrajectorySpec) and sam.initial is None
+    assert sam.trajectory.odometry_topic == "/reference/odom"
+    assert sam.trajectory.source_key == "trajectory.bag"
+
+
+@pytest.mark.parametrize(
+    ("trajectory", "key"),
+    [
+        ({"kind": "segments", "segments": []}, "trajectory.segments"),
+        ({"kind": "segments", "segments": [{"duration_s": 0}]},
+         "trajectory.segments[0].duration_s"),
+        ({"kind": "segments", "segments": [{"duration_s": 1, "accel_mps2": None}]},
+         "trajectory.segments[0].accel_mps2"),
+        ({"kind": "segments", "segments": [{"duration_s": 1}], "coning": {}}, "trajectory.coning"),
+        ({"kind": "increments", "segments": [{"duration_s": 1, "omega_dps": [0, 0]}]},
+         "trajectory.segments[0].omega_dps"),
+        ({"kind": "increments", "segments": [{"duration_s": 0.0125}]},
+         "trajectory.segments[0].duration_s"),
+        ({"kind": "coning", "coning": {"duration_s": -3}}, "trajectory.coning.duration_s"),
+        ({"kind": "coning", "coning": {"theta_deg": 200}}, "trajectory.coning.theta_deg"),
+        ({"kind": "samples"}, "trajectory.file"),
+        ({"kind": "samples", "file": "x.csv", "degree": {"position": True}},
+         "trajectory.degree.position"),
+        ({"segments": [{"duration_s": 1}]}, "trajectory.kind"),
+    ],
+)  # fmt: skip
+def test_trajectory_errors_name_the_key(trajectory, key):
+    assert error_of(with_(trajectory=trajectory)).key == key
+
+
+def test_initial_is_required_except_for_samples():
+    doc = with_()
+    del doc["initial"]
+    for kind in ({"kind": "segments", "segments": [{"duration_s": 1}]}, {"kind": "coning"},
+                 {"kind": "increments", "segments": [{"duration_s": 1}]}):  # fmt: skip
+        assert error_of({**doc, "trajectory": kind}).key == "initial"
+    parse_scenario({**doc, "trajectory": {"kind": "samples", "file": "x.csv"}})
+
+
+def test_latitude_rule_differs_by_kind():
+    """±90° for increments (integrated in E0); ±89.9° for segments and coning (1/cos φ)."""
+    pole = {"latitude_deg": 90.0, "longitude_deg": 0.0}
+    parse_scenario(with_(initial=pole, trajectory={"kind": "increments",
+                                                   "segments": [{"duration_s": 1}]}))  # fmt: skip
+    for trajectory in ({"kind": "segments", "segments": [{"duration_s": 1}]}, {"kind": "coning"}):
+        err = error_of(with_(initial=pole, trajectory=trajectory))
+        assert err.key == "initial.latitude_deg" and "89.9" in err.problem

@@ -78,6 +78,8 @@ class Initial(Model):
     """Initial state: geodetic position (WGS-84, ellipsoidal altitude), NED velocity (m/s),
     roll/pitch/heading of the body FRD axes w.r.t. NED (deg)."""
 
+    # ±90° here; the segments and coning kinds need ±89.9° (their latitude integrates
+    # 1/cos φ): config.trajectory.check_trajectory.
     latitude_deg: Annotated[Finite, Field(ge=-90.0, le=90.0)]
     longitude_deg: Annotated[Finite, Field(ge=-180.0, le=360.0)]
     altitude_m: Annotated[Finite, Field(ge=-10_000.0, le=1_000_000.0)] = 0.0
