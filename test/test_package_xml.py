@@ -53,11 +53,15 @@ MODULE_KEYS: dict[str, str | None] = {
     # pip-only keys of rosdistro
     "rosbags": "python3-rosbags-pip",
     "mcap": "python3-mcap-pip",
+    "bokeh": "python3-bokeh-pip",  # optional (Dask dashboard): imported under except ImportError
     # no rosdep key (pip install, see docs/development.md)
     "mpmath": None,
     "mcap_ros2": None,
     "pyIGRF14": None,  # IGRF-14 coefficients (aiding magnetometer)
     "ambiance": None,  # ICAO atmosphere reference in the aiding tests
+    "dask": None,  # campaign engine
+    "distributed": None,  # campaign engine
+    "pyarrow": None,  # campaign results (Parquet)
 }
 
 #: Keys used without an import: pytest plugins configured in setup.cfg.
@@ -69,12 +73,38 @@ LOCAL_TEST_MODULES = {p.stem for p in (REPO / "test").rglob("*.py")} | {
 }
 
 
-def _imports(paths: list[Path]) -> dict[str, set[str]]:
-    """Third-party top-level module → files importing it (stdlib and the package excluded)."""
+_IMPORT_ERRORS = {"ImportError", "ModuleNotFoundError"}
+
+
+def _optional_imports(tree: ast.AST) -> set[int]:
+    """ids of the import nodes inside ``try: ... except ImportError`` (optional features)."""
+    out: set[int] = set()
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Try):
+            continue
+        caught = set()
+        for handler in node.handlers:
+            types = handler.type.elts if isinstance(handler.type, ast.Tuple) else [handler.type]
+            caught |= {t.id for t in types if isinstance(t, ast.Name)}
+        if caught & _IMPORT_ERRORS:
+            for stmt in node.body:
+                out |= {id(n) for n in ast.walk(stmt) if isinstance(n, ast.Import | ast.ImportFrom)}
+    return out
+
+
+def _imports(paths: list[Path], *, optional: bool = False) -> dict[str, set[str]]:
+    """Third-party top-level module → files importing it (stdlib and the package excluded).
+
+    Imports guarded by ``except ImportError`` are optional features (numba's JIT, Dask's
+    dashboard): they need no key, but may have one (``optional=True`` includes them).
+    """
     found: dict[str, set[str]] = {}
     for path in paths:
         tree = ast.parse(path.read_text(), filename=str(path))
+        skip = set() if optional else _optional_imports(tree)
         for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
             if isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
             elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
@@ -160,8 +190,8 @@ def test_message_packages_are_run_dependencies() -> None:
 
 
 def test_every_declared_key_is_used() -> None:
-    package = {MODULE_KEYS.get(m) for m in _imports(_package_files())}
-    tests = {MODULE_KEYS.get(m) for m in _imports(_test_files())}
+    package = {MODULE_KEYS.get(m) for m in _imports(_package_files(), optional=True)}
+    tests = {MODULE_KEYS.get(m) for m in _imports(_test_files(), optional=True)}
     used_run = (package | _message_packages()) - {None}
     declared = _declared()
     unused_run = _run_keys() - used_run
