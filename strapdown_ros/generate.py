@@ -21,9 +21,10 @@ import numpy as np
 from strapdown_ros.bag.batches import Batch
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.config import Scenario
+from strapdown_ros.config.navigator import navigator_spec
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
-from strapdown_ros.stages.navigation import _NavigatorStreamer
+from strapdown_ros.stages.navigation import NavigationStage
 from strapdown_ros.stages.reference import (
     build_trajectory,
     output_cycles,
@@ -108,11 +109,9 @@ def bag_custom_data(scenario: Scenario) -> dict[str, str]:
     if scenario.variation is not None:
         method, gravity = variation_settings(scenario)
         data["variation.method"], data["variation.gravity"] = str(method), gravity
-    if scenario.navigator is not None:
-        from strapdown_ros.stages.navigation import navigator_settings
-
-        settings = navigator_settings(scenario)
-        data["navigator.algorithm"], data["navigator.mode"] = settings.algorithm, settings.mode
+    nav = navigator_spec(scenario)
+    if nav is not None:
+        data["navigator.algorithm"], data["navigator.mode"] = nav.algorithm, str(nav.mode)
     if scenario.imu_errors is not None:
         for key in ("preset", "seed"):
             if key in scenario.imu_errors:
@@ -225,7 +224,9 @@ def generate_dataset(
 
     def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
         streamer = None if scenario.variation is None else _VariationStreamer(scenario, total)
-        navigator = None if scenario.navigator is None else _NavigatorStreamer(scenario)
+        navigator = None
+        if scenario.navigator is not None:
+            navigator = NavigationStage.for_scenario(scenario, period_ns=scenario.period_ns)
         for piece, batches in reference_batch_chunks(scenario, trajectory):
             res = {"reference": stream_residuals(piece)}
             if streamer is not None:
@@ -234,7 +235,7 @@ def generate_dataset(
                 batches = batches + measured.feed_batches(batches)
             nav_errors: dict[str, float] = {}
             if navigator is not None:
-                batches = batches + navigator.feed(batches)
+                batches = batches + navigator.feed_batches(batches)
                 nav_errors = navigator.final_errors
             yield piece.cycles, res, batches, nav_errors
 

@@ -95,7 +95,7 @@ class PipelineResult:
 
 def expected_counts(scenario: Scenario) -> dict[str, int]:
     """Message count of every topic the scenario produces (what ``generate`` writes)."""
-    from strapdown_ros.stages.navigation import INPUT_STREAMS, navigator_settings
+    from strapdown_ros.config.navigator import INPUT_STREAMS, navigator_spec
     from strapdown_ros.stages.reference import build_trajectory, output_cycles
     from strapdown_ros.topics import produced_keys
 
@@ -116,8 +116,8 @@ def expected_counts(scenario: Scenario) -> dict[str, int]:
         "variation_reference_odom": m_var + 1,
         **imu_counts,
     }
-    if scenario.navigator is not None:
-        st = navigator_settings(scenario)
+    st = navigator_spec(scenario)
+    if st is not None:
         key = next(k for k, v in scenario.recording.topics.items() if v == st.imu_topic)
         assert key in INPUT_STREAMS
         outputs = imu_counts[key] // st.n + 1
@@ -246,7 +246,7 @@ def run_pipeline(
         ``out`` exists and ``force`` is false.
     """
     from strapdown_ros.bag.reader import read_bag
-    from strapdown_ros.stages.navigation import navigator_settings
+    from strapdown_ros.config.navigator import navigator_spec
 
     t_start = time.monotonic()
     scenario = load_scenario(scenario_path, list(overrides), duration_s)
@@ -269,7 +269,7 @@ def run_pipeline(
 
     # Subscriptions per topic: the recorder on every produced topic, plus the pipeline's nodes.
     subs = dict.fromkeys(expected, 1)
-    nav = navigator_settings(scenario) if scenario.navigator is not None else None
+    nav = navigator_spec(scenario)
     if scenario.variation is not None:
         subs[topics["reference_imu"]] += 1
         subs[topics["reference_odom"]] += 1
@@ -431,10 +431,10 @@ def replay_into_navigator(
     offline navigator on the same messages (the bag's own ``/navigator/*`` topics when they were
     written with the same settings, else :func:`strapdown_ros.stages.navigation.navigate_messages`).
     """
-    from strapdown_ros.bag import cdr
     from strapdown_ros.bag.reader import read_bag
     from strapdown_ros.config import DEFAULT_TOPICS
-    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, navigate_messages, parse_navigator
+    from strapdown_ros.config.navigator import NavigatorSpec, resolve_navigator
+    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, navigate_messages
 
     t_start = time.monotonic()
     out = Path(out)
@@ -444,10 +444,12 @@ def replay_into_navigator(
     if scenario_path is not None:
         scenario = load_scenario(scenario_path, list(overrides))
         topics = dict(scenario.recording.topics)
-        settings = parse_navigator(scenario.navigator, topics, scenario.gravity_model)
+        settings = resolve_navigator(
+            scenario.navigator or NavigatorSpec(), topics, scenario.gravity_model
+        )
     else:
         topics = dict(DEFAULT_TOPICS)
-        settings = parse_navigator({}, topics, "j2")
+        settings = resolve_navigator(NavigatorSpec(), topics, "j2")
     inputs = [settings.imu_topic] + ([settings.truth_topic] if settings.truth_topic else [])
     contents = read_bag(bag, inputs, raw=True)
     imu = contents.topics[settings.imu_topic]
@@ -456,7 +458,11 @@ def replay_into_navigator(
     data_s = (n_imu + 1) * float(np.median(np.diff(imu.log_time_ns))) * 1e-9 if n_imu > 1 else 0
     if timeout_s is None:
         timeout_s = data_s / max(rate_factor, 1e-3) + 120.0
-    expected = navigate_messages(settings, imu.fields, truth.fields if truth else None)
+    expected = navigate_messages(
+        settings, imu.fields, truth.fields if truth else None,
+        initial=scenario.initial if scenario else None,
+        start_ns=scenario.start_time_ns if scenario else None,
+    )  # fmt: skip
     out_topics = {k: topics[v] for k, v in OUTPUT_TOPICS.items()}
 
     domain = _private_domain() if domain_id is None else int(domain_id)
@@ -524,13 +530,13 @@ def replay_into_navigator(
         _reap(children)
     got = read_bag(out, raw=True)
     result = ReplayResult(out=out, reference="the offline navigator on the bag's messages")
-    want = dict(expected.items()) if expected is not None else {}
+    want = expected
     for key, topic in out_topics.items():
         if topic not in recorded:
             continue
         payloads = [bytes(p) for p in got.topics[topic].payloads] if topic in got.topics else []
         result.counts[topic] = len(payloads)
-        ref = [bytes(p) for p in cdr.serialize(want[key])] if key in want else []
+        ref = want.get(key, [])
         if payloads != ref:
             result.mismatches[topic] = f"{len(payloads)} recorded vs {len(ref)} expected" + (
                 "" if len(payloads) != len(ref) else ", payloads differ"

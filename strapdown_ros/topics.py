@@ -72,9 +72,10 @@ def produced_keys(scenario: Scenario) -> list[str]:
 
 def _navigator_has_truth(scenario: Scenario) -> bool:
     """Whether the navigator compares with a truth topic (and so publishes its errors)."""
-    from strapdown_ros.stages.navigation import navigator_settings
+    from strapdown_ros.config.navigator import navigator_spec
 
-    return bool(navigator_settings(scenario).truth_topic)
+    spec = navigator_spec(scenario)
+    return spec is not None and bool(spec.truth_topic)
 
 
 def produced_topics(scenario: Scenario) -> dict[str, str]:

@@ -4,7 +4,7 @@
 1. ``generate`` with the default ``navigator`` section writes the five navigator topics; their
    values agree with an independent offline computation from the bag's own variation messages
    (``stream_from_messages`` → core navigator → ``navigation_errors`` on the E0 truth).
-2. :class:`NavigatorSolver` fed the bag's payloads one at a time (live order) publishes exactly
+2. :class:`NavigationStage` fed the bag's payloads one at a time (live order) publishes exactly
    the bag's payloads; with a dropped and a swapped IMU message it logs them, never integrates
    across the gap, and restarts from the truth.
 3. trajectory_node → variation_node → navigator_node → recorder over real DDS: message for
@@ -25,10 +25,11 @@ import pytest
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import load_scenario
+from strapdown_ros.config.navigator import navigator_spec
 from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.messages import stream_from_messages
-from strapdown_ros.stages.navigation import navigator_settings
+from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
@@ -76,7 +77,7 @@ def _variation_stream(contents, scenario):
 def test_generate_writes_navigator_streams(bag, scenario) -> None:
     """Counts, stamps and values against an independent offline computation."""
     _, contents = bag
-    settings = navigator_settings(scenario)
+    settings = navigator_spec(scenario)
     assert (settings.algorithm, settings.mode, settings.imu_topic) == (
         "multirate",
         "exact",
@@ -109,14 +110,11 @@ def test_generate_writes_navigator_streams(bag, scenario) -> None:
 
 
 def _solver(scenario, warnings):
-    from strapdown_ros.nodes.navigator_node import _input_end_ns
-    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, NavigatorSolver
-
-    settings = navigator_settings(scenario)
-    topics = {k: scenario.recording.topics[v] for k, v in OUTPUT_TOPICS.items()}
-    return NavigatorSolver(
-        settings, topics, None, None, 0.0, _input_end_ns(scenario, settings.imu_topic),
-        "earth", info=lambda m: None, warn=warnings.append, error=warnings.append,
+    """The stage as navigator_node builds it (period from the stamps, end from the scenario)."""
+    spec = navigator_spec(scenario)
+    return NavigationStage.for_scenario(
+        scenario, end_ns=input_end_ns(scenario, spec.imu_topic), warn=warnings.append,
+        error=warnings.append,
     )  # fmt: skip
 
 
@@ -250,7 +248,7 @@ def test_initial_errors_show_in_the_first_output(scenario) -> None:
          " attitude_rph_deg: [0, 0, 0.01]}"],
         1.0,
     )  # fmt: skip
-    settings = navigator_settings(s)
+    settings = navigator_spec(s)
     ref = generate_reference(s)
     from strapdown_ros.messages import odometry_fields, odometry_state
 

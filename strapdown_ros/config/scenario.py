@@ -30,6 +30,7 @@ from strapdown_ros.config.base import (
     Vector3,
     validate_section,
 )
+from strapdown_ros.config.navigator import NavigatorSpec, check_navigator
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 
 __all__ = [
@@ -153,7 +154,7 @@ class Scenario(Model):
     # -- sections (each its own model; see config/<section>.py) --------------------------------
     trajectory: TrajectorySpec  # SECTION trajectory
     variation: dict[str, Any] | None = None  # SECTION variation
-    navigator: dict[str, Any] | None = None  # SECTION navigator
+    navigator: NavigatorSpec | None = None  # SECTION navigator
     imu_errors: dict[str, Any] | None = None  # SECTION imu_errors
     recording: Recording = Field(default_factory=Recording)
 
@@ -226,6 +227,7 @@ class Scenario(Model):
             )
         check_trajectory(self)
         _legacy_sections(self)
+        check_navigator(self)
         return self
 
 
@@ -255,15 +257,6 @@ def _legacy_sections(scenario: Scenario) -> None:
             parse_imu_errors(scenario.imu_errors)
         except ImuErrorsError as exc:
             raise ScenarioError(exc.key, exc.problem) from None
-    if scenario.navigator is not None:
-        from strapdown_ros.stages.navigation import parse_navigator
-
-        parse_navigator(
-            scenario.navigator,
-            scenario.recording.topics,
-            scenario.gravity_model,
-            {"variation": variation, "imu_errors": scenario.imu_errors},
-        )
 
 
 # ---------------------------------------------------------------------------------------------

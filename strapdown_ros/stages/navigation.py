@@ -1,28 +1,17 @@
-"""The navigator on messages: scenario settings, initialization and output messages.
+"""The navigation stage: the navigator on messages, for ``generate`` and ``navigator_node``.
 
-One implementation for ``strapdown-sim generate`` and ``navigator_node``: both decode the IMU
-and truth messages of the input stream (:func:`strapdown_ros.messages.imu_increments`,
-:func:`~strapdown_ros.messages.odometry_state`), feed them to a :class:`NavigatorRun`, and
-serialize what it returns, so their ``/navigator/*`` messages are identical. The mathematics is
-in :mod:`strapdown_ros.core.navigation` (Waldmann Table 1 / Table 2, the ``exact`` mode).
-
-Conventions (docs/navigator.md):
-
-* A run starts at a truth stamp ``t_s`` (the initial state, SPEC §2) and consumes the IMU
-  messages ``t_s + T, t_s + 2T, …`` without a gap; outputs are stamped ``t_s + j N T``,
-  j = 0, 1, … (j = 0 is the initial state, so its errors are the initial errors).
-* Errors (SPEC §4) are computed against the truth message with the output's stamp: position
-  ``C_E^N(true) (r_nav − r_true)`` NED, velocity ``v_nav − v_true`` NED, Young 1980 eq. (28)
-  angles of ``C_B^N(nav) C_B^N(true)ᵀ``.
-* ``/navigator/odom`` follows the Odometry semantics of SPEC §4; ``twist.angular`` is the
-  cycle's mean body rate relative to the Earth, ``ΣΔα / T_nav − C_E^B ω_ie``.
+:class:`NavigationStage` is the one streaming implementation: it takes the Imu and truth
+Odometry messages of its input (raw payloads or decoded fields, in any chunking), checks them
+(period, gaps, order, repeats, frames), runs the navigator of :mod:`strapdown_ros.core.
+navigation` over each contiguous stretch (:class:`NavigatorRun`) and returns the serialized
+``/navigator/*`` messages now complete. Conventions (runs, stamps, errors, ``/navigator/odom``):
+docs/navigator.md; the node's behaviour: docs/nodes.md.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,15 +19,12 @@ from numpy.typing import NDArray
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
-from strapdown_ros.config import Scenario
-from strapdown_ros.config._legacy_readers import (
-    ScenarioError,
-    check_mapping,
-    read_bool,
-    read_choice,
-    read_int,
-    read_number,
-    read_vector,
+from strapdown_ros.config import Initial, Scenario
+from strapdown_ros.config.navigator import (
+    INPUT_STREAMS,
+    OUTPUT_TOPICS,
+    NavigatorSpec,
+    navigator_spec,
 )
 from strapdown_ros.core.earth import (
     OMEGA_IE_VEC,
@@ -47,14 +33,17 @@ from strapdown_ros.core.earth import (
     ecef_to_geodetic,
     geodetic_to_ecef,
 )
-from strapdown_ros.core.gravity import GRAVITY_MODELS
 from strapdown_ros.core.navigation import (
-    MODES,
     MultirateNavigator,
     NavSolution,
     NavState,
     SimultaneousNavigator,
     VerticalDamping,
+)
+from strapdown_ros.core.navigation.errors import (
+    attitude_error_young,
+    position_error_ned,
+    velocity_error_ned,
 )
 from strapdown_ros.core.rotations import (
     dcm_from_euler,
@@ -62,9 +51,9 @@ from strapdown_ros.core.rotations import (
     euler_from_dcm,
     quat_from_dcm,
 )
-from strapdown_ros.core.young import young_error_angles
 from strapdown_ros.messages import (
     EarthState,
+    ImuFields,
     NavSatFixFields,
     OdometryFields,
     Vector3StampedFields,
@@ -76,228 +65,63 @@ from strapdown_ros.messages import (
 )
 
 __all__ = [
-    "ALGORITHMS",
+    "INPUT_STREAMS",
+    "OUTPUT_TOPICS",
+    "NavigationStage",
     "NavigatorOutputs",
     "NavigatorRun",
-    "NavigatorSettings",
     "StreamError",
+    "build_navigator",
     "initial_state_from_scenario",
     "initial_state_from_truth",
+    "input_end_ns",
     "navigate_messages",
-    "navigator_settings",
-    "parse_navigator",
 ]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
+Log = Callable[[str], None]
+Message = tuple[str, int, bytes]
 
-ALGORITHMS = ("multirate", "simultaneous")
-INITIALIZATIONS = ("truth", "scenario")
-NAVIGATOR_KEYS = (
-    "algorithm",
-    "mode",
-    "n",
-    "p",
-    "imu_topic",
-    "truth_topic",
-    "initialization",
-    "initial_errors",
-    "vertical_damping",
-    "gravity_model",
-    "table1_radii",
-    "normalize_quaternion",
-    "frame_id",
-)
-INITIAL_ERROR_KEYS = ("position_ned_m", "velocity_ned_mps", "attitude_rph_deg")
-DAMPING_KEYS = ("k1", "k2", "paper_signs")
-#: Input IMU topic key → (truth topic key, scenario section it needs).
-INPUT_STREAMS = {
-    "reference_imu": ("reference_odom", None),
-    "variation_imu": ("variation_odom", "variation"),
-    "variation_reference_imu": ("variation_reference_odom", "variation"),
-    "variation_imu_measured": ("variation_odom", "imu_errors"),
-}
-#: Output keys of :class:`NavigatorOutputs` → scenario recording.topics keys.
-OUTPUT_TOPICS = {
-    "odom": "navigator_odom",
-    "fix": "navigator_fix",
-    "error_position": "navigator_error_position",
-    "error_velocity": "navigator_error_velocity",
-    "error_attitude": "navigator_error_attitude",
-}
+#: Truth messages kept for (re)starting runs.
+TRUTH_KEEP = 4096
 
 
 class StreamError(ValueError):
     """The input messages cannot be integrated as they are (gap, out of order, wrong rate)."""
 
 
-@dataclass(frozen=True)
-class NavigatorSettings:
-    """The scenario's ``navigator`` section, validated (docs/scenarios.md).
-
-    Attributes
-    ----------
-    algorithm : str
-        ``multirate`` (Waldmann Table 1) or ``simultaneous`` (Table 2).
-    mode : str
-        ``paper`` or ``exact`` (multirate only).
-    n, p : int
-        ``N = T_nav / T_gyr``, ``P = T_nav / T_int``.
-    imu_topic, truth_topic : str
-        Input topics (truth: initial state and errors; empty string: none).
-    initialization : str
-        ``truth`` (first message of the truth topic) or ``scenario`` (the scenario's initial
-        state; reference input only).
-    position_error_ned, velocity_error_ned, attitude_error_rph : arrays (3,)
-        Initial errors added to the initial state: m (NED), m/s (NED), rad (roll, pitch,
-        heading offsets).
-    damping : VerticalDamping or None
-        Vertical damping with the truth altitude as the auxiliary altitude.
-    gravity_model : str
-        The generator's gravitation model unless set.
-    table1_radii, normalize : bool
-        Paper-mode options (Table 1's radii; normalizing ``q_b^l`` each fast step).
-    frame_id : str
-        Child frame of ``/navigator/odom`` and frame of ``/navigator/fix``.
-    """
-
-    algorithm: str = "multirate"
-    mode: str = "exact"
-    n: int = 10
-    p: int = 2
-    imu_topic: str = "/variation/imu"
-    truth_topic: str = "/variation/odom"
-    initialization: str = "truth"
-    position_error_ned: F64 = field(default_factory=lambda: np.zeros(3))
-    velocity_error_ned: F64 = field(default_factory=lambda: np.zeros(3))
-    attitude_error_rph: F64 = field(default_factory=lambda: np.zeros(3))
-    damping: VerticalDamping | None = None
-    gravity_model: str = "j2"
-    table1_radii: bool = False
-    normalize: bool = True
-    frame_id: str = "navigator"
-
-    def make(self, initial: NavState, t_gyr: float) -> MultirateNavigator | SimultaneousNavigator:
-        """A navigator of these settings starting at ``initial`` with IMU period ``t_gyr``."""
-        if self.algorithm == "simultaneous":
-            return SimultaneousNavigator(
-                initial, t_gyr, self.n, self.gravity_model, self.normalize, self.table1_radii,
-                self.damping,
-            )  # fmt: skip
-        return MultirateNavigator(
-            initial, t_gyr, self.n, self.p, mode=self.mode, gravity_model=self.gravity_model,
-            normalize=self.normalize, table1_radii=self.table1_radii, damping=self.damping,
-        )  # fmt: skip
-
-
-def _topic_key(topics: Mapping[str, str], name: str) -> str | None:
-    for key, value in topics.items():
-        if value == name:
-            return key
+def _quiet(_: str) -> None:
     return None
 
 
-def parse_navigator(
-    section: Mapping[str, Any] | None,
-    topics: Mapping[str, str],
-    gravity_model: str,
-    sections: Mapping[str, object] | None = None,
-) -> NavigatorSettings:
-    """Validate a ``navigator`` section; errors name the dotted key (:class:`ScenarioError`).
+def format_stamp(stamp_ns: int) -> str:
+    """``sec.nanosec`` of a stamp (ns since the epoch)."""
+    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
 
-    Parameters
-    ----------
-    section : mapping or None
-        The section (None: all defaults).
-    topics : mapping
-        The scenario's ``recording.topics`` (stream key → topic name).
-    gravity_model : str
-        The scenario's gravitation model (the default).
-    sections : mapping, optional
-        The scenario's other sections (``variation``, ``imu_errors``): the input stream must be
-        one the scenario produces. None: not checked (the node's standalone use).
+
+def build_navigator(
+    spec: NavigatorSpec, initial: NavState, t_gyr: float, n: int | None = None
+) -> MultirateNavigator | SimultaneousNavigator:
+    """The core navigator of a resolved ``spec`` starting at ``initial``.
+
+    ``t_gyr``: IMU period (s); ``n``: N (default ``spec.n``; ``navigator_node`` may derive it
+    from ``nav_period_s``).
     """
-    path = "navigator"
-    d = check_mapping(section, path, NAVIGATOR_KEYS)
-    algorithm = read_choice(d, "algorithm", path, ALGORITHMS, "multirate")
-    mode = read_choice(d, "mode", path, MODES, "exact" if algorithm == "multirate" else "paper")
-    if algorithm == "simultaneous" and mode != "paper":
-        raise ScenarioError(f"{path}.mode", "the simultaneous scheme (Table 2) has only 'paper'")
-    n = read_int(d, "n", path, default=10, minimum=1)
-    p = read_int(d, "p", path, default=2, minimum=1)
-    imu_topic = d.get("imu_topic", topics.get("variation_imu", "/variation/imu"))
-    if not isinstance(imu_topic, str) or not imu_topic.startswith("/"):
-        raise ScenarioError(f"{path}.imu_topic", f"must be an absolute topic, got {imu_topic!r}")
-    key = _topic_key(topics, imu_topic)
-    if sections is not None:
-        if key not in INPUT_STREAMS:
-            names = ", ".join(topics[k] for k in INPUT_STREAMS if k in topics)
-            raise ScenarioError(
-                f"{path}.imu_topic", f"{imu_topic!r} is not an IMU stream; one of: {names}"
-            )
-        needs = INPUT_STREAMS[key][1]
-        if needs is not None and sections.get(needs) is None:
-            raise ScenarioError(
-                f"{path}.imu_topic", f"{imu_topic!r} needs a '{needs}' section in the scenario"
-            )
-    default_truth = topics.get(INPUT_STREAMS[key][0], "") if key in INPUT_STREAMS else ""
-    truth_topic = d.get("truth_topic", default_truth)
-    if truth_topic is None:
-        truth_topic = ""
-    if not isinstance(truth_topic, str) or (truth_topic and not truth_topic.startswith("/")):
-        raise ScenarioError(
-            f"{path}.truth_topic", f"must be an absolute topic or empty, got {truth_topic!r}"
-        )
-    init = read_choice(d, "initialization", path, INITIALIZATIONS, "truth")
-    if init == "truth" and not truth_topic:
-        raise ScenarioError(f"{path}.initialization", "'truth' needs a truth_topic")
-    if init == "scenario" and key not in (None, "reference_imu"):
-        raise ScenarioError(
-            f"{path}.initialization",
-            "'scenario' initializes from the reference IMU's initial state; use it with "
-            f"imu_topic {topics.get('reference_imu', '/reference/imu')!r} or use 'truth'",
-        )
-    e = check_mapping(d.get("initial_errors"), f"{path}.initial_errors", INITIAL_ERROR_KEYS)
-    ep = f"{path}.initial_errors"
-    pos = read_vector(e, "position_ned_m", ep, default=[0.0, 0.0, 0.0])
-    vel = read_vector(e, "velocity_ned_mps", ep, default=[0.0, 0.0, 0.0])
-    att = read_vector(e, "attitude_rph_deg", ep, default=[0.0, 0.0, 0.0])
+    n = spec.n if n is None else n
+    vd = spec.vertical_damping
     damping = None
-    if d.get("vertical_damping") not in (None, False):
-        dp = f"{path}.vertical_damping"
-        raw = {} if d["vertical_damping"] is True else d["vertical_damping"]
-        v = check_mapping(raw, dp, DAMPING_KEYS)
-        if mode == "exact":
-            raise ScenarioError(dp, "vertical damping is a 'paper' mode option")
-        if not truth_topic:
-            raise ScenarioError(dp, "needs a truth_topic (its altitude is the auxiliary altitude)")
-        damping = VerticalDamping(
-            k1=read_number(v, "k1", dp, default=1.0, minimum=0.0),  # type: ignore[arg-type]
-            k2=read_number(v, "k2", dp, default=1.0, minimum=0.0),  # type: ignore[arg-type]
-            paper_signs=read_bool(v, "paper_signs", dp, False),
+    if vd is not None:
+        damping = VerticalDamping(k1=vd.k1, k2=vd.k2, paper_signs=vd.paper_signs)
+    gravity = str(spec.gravity_model)
+    if spec.algorithm == "simultaneous":
+        return SimultaneousNavigator(
+            initial, t_gyr, n, gravity, spec.normalize_quaternion, spec.table1_radii, damping
         )
-    gravity = read_choice(d, "gravity_model", path, GRAVITY_MODELS, gravity_model)
-    frame = d.get("frame_id", "navigator")
-    if not isinstance(frame, str) or not frame or " " in frame:
-        raise ScenarioError(f"{path}.frame_id", f"must be a frame id, got {frame!r}")
-    assert algorithm and mode and n and p and init and gravity and pos and vel and att
-    return NavigatorSettings(
-        algorithm=algorithm,
-        mode=mode,
-        n=n,
-        p=p,
-        imu_topic=imu_topic,
-        truth_topic=truth_topic,
-        initialization=init,
-        position_error_ned=np.array(pos),
-        velocity_error_ned=np.array(vel),
-        attitude_error_rph=np.radians(att),
-        damping=damping,
-        gravity_model=gravity,
-        table1_radii=read_bool(d, "table1_radii", path, False),
-        normalize=read_bool(d, "normalize_quaternion", path, True),
-        frame_id=frame,
-    )
+    return MultirateNavigator(
+        initial, t_gyr, n, spec.p, mode=str(spec.mode), gravity_model=gravity,
+        normalize=spec.normalize_quaternion, table1_radii=spec.table1_radii, damping=damping,
+    )  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------
@@ -307,7 +131,9 @@ def parse_navigator(
 
 @dataclass(frozen=True)
 class _Truth:
-    """Truth rows in navigation terms (from Odometry messages)."""
+    """Truth rows in navigation terms (from Odometry messages): ECEF position (m), geodetic
+    latitude, longitude (rad), altitude (m), NED velocity (m/s), ``C_B^N``, body rate relative
+    to the Earth (rad/s, FRD)."""
 
     r_e: F64
     lat: F64
@@ -332,49 +158,42 @@ def _truth(state: EarthState) -> _Truth:
     )
 
 
+def _rows(state: EarthState, rows: slice | NDArray[np.intp]) -> EarthState:
+    return EarthState(*(np.asarray(a)[rows] for a in state))
+
+
 def initial_state_from_truth(
-    truth: EarthState, row: int, settings: NavigatorSettings, t: float = 0.0
+    truth: EarthState, row: int, spec: NavigatorSpec, t: float = 0.0
 ) -> NavState:
-    """The initial state from truth row ``row`` plus the settings' initial errors.
+    """The initial state from truth row ``row`` plus the spec's initial errors.
 
     Position error: NED metres in the true local level, applied in ECEF; velocity error: NED;
     attitude error: offsets of roll, pitch and heading (Euler angles of ``C_B^N``).
     """
-    tr = _truth(EarthState(*(np.asarray(a)[row : row + 1] for a in truth)))
-    r = tr.r_e[0] + dcm_ned_to_ecef(tr.lat[0], tr.lon[0]) @ settings.position_error_ned
+    tr = _truth(_rows(truth, slice(row, row + 1)))
+    r = tr.r_e[0] + dcm_ned_to_ecef(tr.lat[0], tr.lon[0]) @ spec.position_error_ned
     lat, lon, alt = ecef_to_geodetic(r)
     c = tr.c_b_n[0]
-    if np.any(settings.attitude_error_rph):
-        c = dcm_from_euler(*(np.asarray(euler_from_dcm(c)) + settings.attitude_error_rph))
+    att = spec.attitude_error_rph
+    if np.any(att):
+        c = dcm_from_euler(*(np.asarray(euler_from_dcm(c)) + att))
     return NavState(
         float(t), float(lat), float(lon), float(alt),
-        tr.v_ned[0] + settings.velocity_error_ned, quat_from_dcm(c),
+        tr.v_ned[0] + spec.velocity_error_ned, quat_from_dcm(c),
     )  # fmt: skip
 
 
-def initial_state_from_scenario(
-    initial: Mapping[str, Any], settings: NavigatorSettings
-) -> NavState:
-    """The initial state from a scenario's ``initial`` section (the reference IMU at t0) plus
-    the settings' initial errors (see :func:`initial_state_from_truth`)."""
-    lat, lon = np.radians(initial["latitude_deg"]), np.radians(initial["longitude_deg"])
-    alt = float(initial["altitude_m"])
-    r = geodetic_to_ecef(lat, lon, alt) + dcm_ned_to_ecef(lat, lon) @ settings.position_error_ned
+def initial_state_from_scenario(initial: Initial, spec: NavigatorSpec) -> NavState:
+    """The initial state from a scenario's ``initial`` (the reference IMU at t0) plus the
+    spec's initial errors (see :func:`initial_state_from_truth`)."""
+    lat, lon = np.radians(initial.latitude_deg), np.radians(initial.longitude_deg)
+    alt = float(initial.altitude_m)
+    r = geodetic_to_ecef(lat, lon, alt) + dcm_ned_to_ecef(lat, lon) @ spec.position_error_ned
     lat, lon, alt = ecef_to_geodetic(r)
-    rph = np.radians(np.asarray(initial["attitude_rph_deg"], dtype=np.float64))
-    v = np.asarray(initial["velocity_ned_mps"], dtype=np.float64) + settings.velocity_error_ned
-    c = dcm_from_euler(*(rph + settings.attitude_error_rph))
+    rph = np.radians(np.asarray(initial.attitude_rph_deg, dtype=np.float64))
+    v = np.asarray(initial.velocity_ned_mps, dtype=np.float64) + spec.velocity_error_ned
+    c = dcm_from_euler(*(rph + spec.attitude_error_rph))
     return NavState(0.0, float(lat), float(lon), float(alt), v, quat_from_dcm(c))
-
-
-def navigator_settings(scenario: Any) -> NavigatorSettings:
-    """The validated settings of a scenario's ``navigator`` section."""
-    return parse_navigator(
-        scenario.navigator,
-        scenario.recording.topics,
-        scenario.gravity_model,
-        {"variation": scenario.variation, "imu_errors": scenario.imu_errors},
-    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -420,11 +239,13 @@ def _output_fields(
         navsatfix_fields_from_geodetic(stamps, sol.lat, sol.lon, sol.alt, frame_id),
     )
     if truth is not None:
-        dr = np.einsum("nij,nj->ni", dcm_ecef_to_ned(truth.lat, truth.lon), r_e - truth.r_e)
+        dr = position_error_ned(r_e, truth.r_e, truth.lat, truth.lon)
         out.error_position = vector3_stamped_fields(stamps, dr, "ned")
-        out.error_velocity = vector3_stamped_fields(stamps, sol.v_ned - truth.v_ned, "ned")
+        out.error_velocity = vector3_stamped_fields(
+            stamps, velocity_error_ned(sol.v_ned, truth.v_ned), "ned"
+        )
         out.error_attitude = vector3_stamped_fields(
-            stamps, young_error_angles(c_b_n, truth.c_b_n), "young_uen"
+            stamps, attitude_error_young(c_b_n, truth.c_b_n), "young_uen"
         )
     return out
 
@@ -443,7 +264,8 @@ class NavigatorRun:
 
     Parameters
     ----------
-    settings : NavigatorSettings
+    spec : NavigatorSpec
+        Resolved navigator section.
     start_ns : int
         Stamp of the initial state ``t_s``.
     period_ns : int
@@ -456,26 +278,31 @@ class NavigatorRun:
         Body rate relative to the Earth for the j = 0 output (truth's, if known).
     earth_frame : str
         Odometry ``header.frame_id``.
+    n : int, optional
+        N (default ``spec.n``).
     """
 
     def __init__(
         self,
-        settings: NavigatorSettings,
+        spec: NavigatorSpec,
         start_ns: int,
         period_ns: int,
         initial: NavState,
         use_truth: bool,
         initial_omega: F64 | None = None,
         earth_frame: str = "earth",
+        n: int | None = None,
     ) -> None:
         if period_ns <= 0:
             raise StreamError(f"IMU period must be positive, got {period_ns} ns")
-        self.settings = settings
+        self.spec = spec
+        self.n = spec.n if n is None else int(n)
+        self.damped = spec.vertical_damping is not None
         self.start_ns, self.period_ns = int(start_ns), int(period_ns)
-        self.nav_period_ns = settings.n * self.period_ns
+        self.nav_period_ns = self.n * self.period_ns
         self.use_truth = use_truth
         self.earth_frame = earth_frame
-        self.navigator = settings.make(initial, self.period_ns * 1e-9)
+        self.navigator = build_navigator(spec, initial, self.period_ns * 1e-9, self.n)
         self.next_imu_ns = self.start_ns + self.period_ns
         self._da: list[F64] = []
         self._dv: list[F64] = []
@@ -483,7 +310,7 @@ class NavigatorRun:
         self._truth: dict[int, tuple[F64, ...]] = {}
         w0 = np.zeros(3) if initial_omega is None else np.asarray(initial_omega, dtype=np.float64)
         self._held: list[tuple[int, NavSolution, F64]] = [
-            (self.start_ns, _solution_rows(initial, settings.n), w0[None])
+            (self.start_ns, _solution_rows(initial, self.n), w0[None])
         ]
         self.cycles = 0
 
@@ -543,12 +370,12 @@ class NavigatorRun:
             rows = [self._truth[int(s)] for s in stamps]
             truth = _truth(EarthState(stamps, *(np.array([r[i] for r in rows]) for i in range(4))))
         self._prune_truth()
-        return _output_fields(stamps, sol, omega, truth, self.settings.frame_id, self.earth_frame)
+        return _output_fields(stamps, sol, omega, truth, self.spec.frame_id, self.earth_frame)
 
     def _integrate(self) -> None:
-        n = self.settings.n
+        n = self.n
         cycles = self._buffered // n
-        if self.settings.damping is not None:
+        if self.damped:
             # h_aux of cycle k: truth altitude at its start stamp (must have arrived).
             have = 0
             while have < cycles and self._cycle_start(self.cycles + have) in self._truth:
@@ -560,7 +387,7 @@ class NavigatorRun:
         dv = np.concatenate(self._dv) if len(self._dv) > 1 else self._dv[0]
         used = cycles * n
         h_aux = None
-        if self.settings.damping is not None:
+        if self.damped:
             starts = [self._cycle_start(self.cycles + k) for k in range(cycles)]
             h_aux = ecef_to_geodetic(np.array([self._truth[s][0] for s in starts]))[2]
         sol = self.navigator.run(da[:used], dv[:used], h_aux)
@@ -610,152 +437,116 @@ def _concat(parts: list[NavSolution]) -> NavSolution:
     )  # fmt: skip
 
 
-def navigate_messages(
-    settings: NavigatorSettings,
-    imu: Any,
-    truth: Any | None,
-    earth_frame: str = "earth",
-) -> NavigatorOutputs | None:
-    """The offline navigator over whole topics (what ``navigator_node`` publishes for them).
-
-    ``imu``: :class:`~strapdown_ros.messages.ImuFields` of the input (uniformly stamped),
-    ``truth``: :class:`~strapdown_ros.messages.OdometryFields` (the first message whose stamp
-    is one period before the first Imu message starts the run). Used by ``strapdown-sim
-    replay`` to check a live replay. Raises :class:`StreamError` on gaps.
-    """
-    from strapdown_ros.messages import imu_increments, odometry_state
-
-    inc = imu_increments(imu)
-    if truth is None:
-        raise StreamError("the offline navigator needs the truth topic to start")
-    state = odometry_state(truth)
-    start = int(inc.stamps_ns[0]) - inc.period_ns
-    rows = np.flatnonzero(np.asarray(state.stamps_ns) == start)
-    if not rows.size:
-        raise StreamError(f"no truth message at {start} ns (one period before the first Imu)")
-    run = NavigatorRun(
-        settings, start, inc.period_ns, initial_state_from_truth(state, int(rows[0]), settings),
-        bool(settings.truth_topic), state.omega_eb_b[int(rows[0])], earth_frame,
-    )  # fmt: skip
-    run.add_truth(state)
-    run.add_imu(inc.stamps_ns, inc.dalpha, inc.dv)
-    return run.outputs()
+# --------------------------------------------------------------------------------------------
+# The streaming stage
+# --------------------------------------------------------------------------------------------
 
 
-class _NavigatorStreamer:
-    """The scenario's navigator fed piece by piece with the decoded messages of its input
-    stream (as ``navigator_node`` is), returning the ``/navigator/*`` batches now complete."""
+class _TruthStore:
+    """The latest ``keep`` truth rows by stamp (a repeated stamp: the last one received),
+    kept as a few arrays and sorted when a run is to start."""
 
-    def __init__(self, scenario: Scenario) -> None:
-        from strapdown_ros.stages.navigation import OUTPUT_TOPICS, navigator_settings
+    def __init__(self, keep: int) -> None:
+        self.keep = keep
+        self._parts: list[EarthState] = []
+        self._rows = 0
+        self._sorted = True
 
-        self.scenario = scenario
-        self.settings = navigator_settings(scenario)
-        self.topics = {k: scenario.recording.topics[v] for k, v in OUTPUT_TOPICS.items()}
-        self.run: object = None
-        self.final_errors: dict[str, float] = {}
+    def add(self, state: EarthState) -> None:
+        self._parts.append(state)
+        self._rows += len(state.stamps_ns)
+        self._sorted = False
+        if self._rows > 2 * self.keep:
+            self.sorted()
 
-    def feed(self, batches: list[Batch]) -> list[Batch]:
-        """Take one piece's batches; return the navigator batches now computable."""
-        from strapdown_ros.stages.navigation import (
-            NavigatorRun,
-            initial_state_from_scenario,
-            initial_state_from_truth,
-        )
-
-        st = self.settings
-        by_topic = {b.topic: b for b in batches}
-        truth = None
-        if st.truth_topic and st.truth_topic in by_topic and by_topic[st.truth_topic].payloads:
-            b = by_topic[st.truth_topic]
-            truth = odometry_state(cdr.deserialize(b.msgtype, b.payloads))
-        if self.run is None:
-            period = self.scenario.period_ns
-            if st.initialization == "truth":
-                if truth is None:
-                    return []
-                initial = initial_state_from_truth(truth, 0, st)
-                start, omega = int(truth.stamps_ns[0]), truth.omega_eb_b[0]
-            else:
-                assert self.scenario.initial is not None
-                initial = initial_state_from_scenario(self.scenario.initial.as_dict(), st)
-                start, omega = self.scenario.start_time_ns, None
-            self.run = NavigatorRun(
-                st, start, period, initial, bool(st.truth_topic), omega,
-                self.scenario.recording.frames["earth"],
-            )  # fmt: skip
-        run: NavigatorRun = self.run  # type: ignore[assignment]
-        if truth is not None:
-            run.add_truth(truth)
-        if st.imu_topic in by_topic and by_topic[st.imu_topic].payloads:
-            b = by_topic[st.imu_topic]
-            inc = imu_increments(cdr.deserialize(b.msgtype, b.payloads), self.scenario.period_ns)
-            run.add_imu(inc.stamps_ns, inc.dalpha, inc.dv)
-        out = run.outputs()
-        if out is None:
-            return []
-        if out.error_position is not None:
-            dr = np.asarray(out.error_position.vector)
-            self.final_errors = {
-                "horizontal_m": float(np.hypot(dr[-1, 0], dr[-1, 1])),
-                "vertical_m": float(abs(dr[-1, 2])),
-                "max_horizontal_m": max(
-                    self.final_errors.get("max_horizontal_m", 0.0),
-                    float(np.hypot(dr[:, 0], dr[:, 1]).max()),
-                ),
-            }
-        return [batch(self.topics[k], f) for k, f in out.items()]
+    def sorted(self) -> EarthState | None:
+        """The rows kept, in stamp order (None if none)."""
+        if not self._parts:
+            return None
+        if not self._sorted:
+            parts = self._parts
+            cat = EarthState(*(np.concatenate([p[i] for p in parts]) for i in range(5)))
+            rev = np.asarray(cat.stamps_ns, dtype=np.int64)[::-1]
+            _, first = np.unique(rev, return_index=True)  # last occurrence of each stamp
+            rows = (rev.size - 1 - first)[-self.keep :]
+            self._parts = [_rows(cat, rows)]
+            self._rows = rows.size
+            self._sorted = True
+        return self._parts[0]
 
 
-#: Truth messages kept for (re)starting runs.
-TRUTH_KEEP = 4096
+@dataclass
+class _Decoded:
+    """One topic's part of an input chunk: fields (None: decode each payload alone)."""
+
+    fields: Any
+    stamps: I64
+    payloads: Sequence[bytes | memoryview] | None = None
+    states: EarthState | None = None  # truth in the Earth frame (None: wrong frame)
 
 
-Log = Callable[[str], None]
+class NavigationStage:
+    """The streaming navigator: Imu and truth messages in, ``/navigator/*`` messages out.
 
+    Input in arrival order and any chunking (:meth:`on_batch` raw payloads, :meth:`feed_fields`
+    decoded fields, :meth:`feed_batches` a piece of ``generate``); the state is carried between
+    calls and the output does not depend on the chunking. The input checks are here:
 
-def format_stamp(stamp_ns: int) -> str:
-    """``sec.nanosec`` of a stamp (ns since the epoch)."""
-    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
-
-
-class NavigatorSolver:
-    """The streaming navigator (no rclpy): raw payloads in, serialized outputs out.
+    * **Period.** T is ``period_ns`` if given, else the difference of the first two increasing
+      IMU stamps; with ``nav_period_s`` > 0, N = T_nav / T must be a whole number.
+    * **Start.** A run starts at a truth stamp ``t_s`` whose next IMU message ``t_s + T`` has
+      arrived (``initialization: truth``), or at ``start_ns`` (``scenario``).
+    * **Gaps.** A missing IMU message ends the run at its last complete cycle; a new run starts
+      from the truth before the next message. Out-of-order and repeated messages are dropped;
+      truth in another frame than ``earth_frame`` and malformed messages are rejected. Each is
+      logged.
 
     Parameters
     ----------
-    settings : NavigatorSettings
-        Algorithm, mode, N, P, topics, initialization, initial errors.
-    output_topics : dict
-        Output key (:data:`~strapdown_ros.stages.navigation.OUTPUT_TOPICS`) → topic name.
-    scenario_initial : mapping or None
-        The scenario's ``initial`` section (``initialization: scenario``).
-    start_ns : int or None
+    spec : NavigatorSpec
+        Resolved ``navigator`` section (:func:`~strapdown_ros.config.navigator.
+        resolve_navigator`).
+    output_topics : mapping
+        Output key (:data:`OUTPUT_TOPICS`) → topic name.
+    initial : Initial, optional
+        The scenario's initial state (``initialization: scenario``).
+    start_ns : int, optional
         The scenario's start stamp (``initialization: scenario``).
+    period_ns : int, optional
+        IMU period T (ns) if known (``generate``); None: from the stamps.
     nav_period_s : float
-        If > 0, ``T_nav`` (s): N = T_nav / T must be an integer (checked when T is known).
-    end_ns : int or None
-        Last IMU stamp of the input stream, if known (the scenario's): :attr:`finished`.
+        If > 0, ``T_nav`` (s) instead of ``spec.n``.
+    end_ns : int, optional
+        Last IMU stamp of the input stream, if known: :attr:`finished`.
     earth_frame : str
-        Odometry frame id.
+        Frame id of the truth Odometry and of ``/navigator/odom``.
+    info, warn, error : callables
+        Log sinks (default: silent).
     """
 
     def __init__(
         self,
-        settings: NavigatorSettings,
-        output_topics: dict[str, str],
-        scenario_initial: dict[str, Any] | None = None,
+        spec: NavigatorSpec,
+        output_topics: Mapping[str, str],
+        *,
+        initial: Initial | None = None,
         start_ns: int | None = None,
+        period_ns: int | None = None,
         nav_period_s: float = 0.0,
         end_ns: int | None = None,
         earth_frame: str = "earth",
-        info: Log = print,
-        warn: Log = print,
-        error: Log = print,
+        info: Log = _quiet,
+        warn: Log = _quiet,
+        error: Log = _quiet,
     ) -> None:
-        self.settings = settings
-        self.output_topics = output_topics
-        self.scenario_initial = scenario_initial
+        if not spec.resolved:
+            raise ValueError("the navigator spec must be resolved (resolve_navigator)")
+        if spec.initialization == "scenario" and (initial is None or start_ns is None):
+            raise ValueError("initialization 'scenario' needs the initial state and start stamp")
+        self.spec = spec
+        self.n = spec.n
+        self.output_topics = dict(output_topics)
+        self.initial = initial
         self.start_ns = start_ns
         self.nav_period_s = nav_period_s
         self.end_ns = end_ns
@@ -763,19 +554,43 @@ class NavigatorSolver:
         self.info, self.warn, self.error = info, warn, error
         self.period_ns: int | None = None
         self.first_imu: tuple[int, Any] | None = None  # (stamp, fields) before T is known
-        self.imu_buffer: list[tuple[int, np.ndarray, np.ndarray]] = []  # waiting for a run
-        self.truth: dict[int, EarthState] = {}
+        self.imu_buffer: list[tuple[int, F64, F64]] = []  # waiting for a run
+        self.truth = _TruthStore(TRUTH_KEEP)
         self.run: NavigatorRun | None = None
         self.runs = 0
         self.published_outputs = 0
         self.last_output_ns: int | None = None
         self.failed: str | None = None
-        self._flush_pending: list[tuple[str, int, bytes]] = []
+        #: End-of-output errors (m): ``horizontal_m``, ``vertical_m``, ``max_horizontal_m``.
+        self.final_errors: dict[str, float] = {}
+        self._flush_pending: list[NavigatorOutputs] = []
+        if period_ns is not None:
+            self._set_period(int(period_ns), "given")
 
-    # -- helpers -------------------------------------------------------------------------------
+    @classmethod
+    def for_scenario(
+        cls, scenario: Scenario, spec: NavigatorSpec | None = None, **kwargs: Any
+    ) -> NavigationStage:
+        """The stage of ``scenario``'s navigator (or of ``spec``, resolved), with its output
+        topics, frames, initial state and start; ``kwargs`` as for the constructor."""
+        spec = navigator_spec(scenario) if spec is None else spec
+        if spec is None:
+            raise ValueError(f"scenario {scenario.name!r} has no navigator section")
+        topics = scenario.recording.topics
+        kwargs.setdefault("earth_frame", scenario.recording.frames["earth"])
+        return cls(
+            spec,
+            {k: topics[v] for k, v in OUTPUT_TOPICS.items()},
+            initial=scenario.initial,
+            start_ns=scenario.start_time_ns,
+            **kwargs,
+        )
+
+    # -- state -------------------------------------------------------------------------------
 
     @property
     def started(self) -> bool:
+        """Whether a run has started."""
         return self.run is not None or self.runs > 0
 
     @property
@@ -787,7 +602,191 @@ class NavigatorSolver:
         last = self.run.start_ns + (self.end_ns - self.run.start_ns) // nav * nav
         return self.last_output_ns is not None and self.last_output_ns >= last
 
-    def _set_period(self, period_ns: int) -> bool:
+    # -- input -------------------------------------------------------------------------------
+
+    def on_batch(self, items: Sequence[tuple[str, bytes | memoryview]]) -> list[Message]:
+        """Raw payloads ``(kind, payload)`` (kind ``imu`` | ``truth``) in arrival order.
+
+        Returns ``(topic, stamp_ns, payload)`` to publish, in order. Each topic's payloads are
+        decoded with one CDR call; a chunk that does not decode as a whole (a malformed message,
+        mixed frame ids) is taken message by message, so every message gets its own verdict.
+        """
+        is_imu = np.fromiter((k == "imu" for k, _ in items), dtype=bool, count=len(items))
+        imu = self._decode(cdr.IMU, [p for k, p in items if k == "imu"])
+        truth = self._decode(cdr.ODOMETRY, [p for k, p in items if k != "imu"])
+        return self._messages(self._feed(is_imu, imu, truth))
+
+    def on_imu(self, payload: bytes | memoryview) -> list[Message]:
+        """One raw Imu payload (``on_batch([("imu", payload)])``)."""
+        return self.on_batch([("imu", payload)])
+
+    def on_truth(self, payload: bytes | memoryview) -> list[Message]:
+        """One raw truth Odometry payload (``on_batch([("truth", payload)])``)."""
+        return self.on_batch([("truth", payload)])
+
+    def feed_fields(
+        self,
+        imu: ImuFields | None = None,
+        truth: OdometryFields | None = None,
+        is_imu: NDArray[np.bool_] | None = None,
+    ) -> list[Message]:
+        """Decoded messages: ``is_imu[k]`` says whether the k-th message received is the next
+        Imu row or the next truth row (default: the truth rows, then the Imu rows)."""
+        n_imu = 0 if imu is None else len(imu.stamps_ns)
+        n_truth = 0 if truth is None else len(truth.stamps_ns)
+        if is_imu is None:
+            is_imu = np.repeat([False, True], [n_truth, n_imu])
+        dec_imu = None if imu is None else self._decoded(imu)
+        dec_truth = None if truth is None else self._decoded(truth)
+        return self._messages(self._feed(np.asarray(is_imu, dtype=bool), dec_imu, dec_truth))
+
+    def feed_batches(self, batches: Sequence[Batch]) -> list[Batch]:
+        """A piece of ``generate``: the batches of the input topics among ``batches`` (truth
+        first, then Imu); returns the ``/navigator/*`` batches now complete."""
+        spec = self.spec
+        by_topic = {b.topic: b for b in batches}
+        imu_payloads = by_topic[spec.imu_topic].payloads if spec.imu_topic in by_topic else []
+        truth_payloads: Sequence[bytes | memoryview] = []
+        if spec.truth_topic and spec.truth_topic in by_topic:
+            truth_payloads = by_topic[spec.truth_topic].payloads
+        is_imu = np.repeat([False, True], [len(truth_payloads), len(imu_payloads)])
+        groups = self._feed(
+            is_imu,
+            self._decode(cdr.IMU, list(imu_payloads)),
+            self._decode(cdr.ODOMETRY, list(truth_payloads)),
+        )
+        if self.failed:
+            raise StreamError(self.failed)
+        return [b for group in groups for b in self._batches(group)]
+
+    # -- decoding ----------------------------------------------------------------------------
+
+    def _decode(self, msgtype: str, payloads: list[bytes | memoryview]) -> _Decoded | None:
+        """All ``payloads`` decoded at once, or (if they do not) kept to be decoded one by one."""
+        if not payloads:
+            return None
+        try:
+            fields = cdr.deserialize(msgtype, payloads)
+        except cdr.CdrError:
+            return _Decoded(None, np.zeros(0, dtype=np.int64), payloads)
+        return self._decoded(fields)
+
+    def _decoded(self, fields: Any) -> _Decoded:
+        stamps = np.asarray(fields.stamps_ns, dtype=np.int64)
+        states = None
+        if isinstance(fields, OdometryFields) and fields.frame_id == self.earth_frame:
+            states = odometry_state(fields)
+        return _Decoded(fields, stamps, None, states)
+
+    # -- the one path ------------------------------------------------------------------------
+
+    def _feed(
+        self, is_imu: NDArray[np.bool_], imu: _Decoded | None, truth: _Decoded | None
+    ) -> list[NavigatorOutputs]:
+        """Messages in arrival order; returns the output groups now complete.
+
+        Stretches that only extend the current run are added in blocks (no output in between);
+        a message that could change the run (none yet, a gap, a repeat) or that is rejected
+        takes the one-message path, after the block before it.
+        """
+        out: list[NavigatorOutputs] = []
+        total = is_imu.size
+        imu_before = np.concatenate([[0], np.cumsum(is_imu)])  # Imu rows before item k
+        imu_items = np.flatnonzero(is_imu)
+        truth_items = np.flatnonzero(~is_imu)
+        imu_ok = imu is not None and imu.fields is not None
+        truth_ok = truth is not None and truth.states is not None
+        pos = 0
+        while pos < total:
+            end = total
+            if not truth_ok:  # the next truth message is taken alone
+                k = np.searchsorted(truth_items, pos)
+                end = int(truth_items[k]) if k < truth_items.size else total
+            r0, r1 = int(imu_before[pos]), int(imu_before[end])
+            if r1 > r0:
+                if not imu_ok or self.run is None or self.period_ns is None:
+                    end = int(imu_items[r0])  # taken alone
+                else:  # the Imu messages continuing the run exactly
+                    expected = self.run.next_imu_ns + self.period_ns * np.arange(r1 - r0)
+                    bad = np.flatnonzero(imu.stamps[r0:r1] != expected)  # type: ignore[union-attr]
+                    if bad.size:
+                        end = int(imu_items[r0 + int(bad[0])])
+            self._add_block(pos, end, imu_before, imu, truth)
+            if end < total:
+                out += self._one(int(end), bool(is_imu[end]), imu_before, imu, truth)
+            pos = end + 1
+        return out + self._advance()
+
+    def _add_block(
+        self,
+        pos: int,
+        end: int,
+        imu_before: NDArray[np.int64],
+        imu: _Decoded | None,
+        truth: _Decoded | None,
+    ) -> None:
+        """Items ``pos..end-1``: truth rows (Earth frame) and Imu rows continuing the run."""
+        if end <= pos:
+            return
+        r0, r1 = int(imu_before[pos]), int(imu_before[end])
+        t0, t1 = pos - r0, end - r1
+        if t1 > t0:
+            assert truth is not None and truth.states is not None
+            self._add_truth(_rows(truth.states, slice(t0, t1)))
+        if r1 > r0:
+            assert imu is not None and self.run is not None and self.period_ns is not None
+            inc = imu_increments(imu.fields.rows(r0, r1), self.period_ns)
+            self.run.add_imu(inc.stamps_ns, inc.dalpha, inc.dv)
+
+    def _one(
+        self,
+        k: int,
+        is_imu: bool,
+        imu_before: NDArray[np.int64],
+        imu: _Decoded | None,
+        truth: _Decoded | None,
+    ) -> list[NavigatorOutputs]:
+        """Item ``k`` alone (see :meth:`_feed`)."""
+        if is_imu:
+            row = int(imu_before[k])
+            assert imu is not None
+            if imu.fields is not None:
+                return self._on_imu_fields(imu.fields.rows(row, row + 1))
+            assert imu.payloads is not None
+            try:
+                fields = cdr.deserialize(cdr.IMU, [imu.payloads[row]])
+            except cdr.CdrError as exc:
+                self.error(f"{self.spec.imu_topic}: rejected a malformed Imu: {exc}")
+                return []
+            return self._on_imu_fields(fields)
+        row = k - int(imu_before[k])
+        assert truth is not None
+        if truth.fields is None:
+            assert truth.payloads is not None
+            try:
+                fields = cdr.deserialize(cdr.ODOMETRY, [truth.payloads[row]])
+            except cdr.CdrError as exc:
+                self.error(f"{self.spec.truth_topic}: rejected a malformed Odometry: {exc}")
+                return []
+            one = self._decoded(fields)
+            if one.states is None:
+                self._wrong_frame(fields.frame_id)
+                return []
+            self._add_truth(one.states)
+            return self._advance()
+        if truth.states is None:
+            self._wrong_frame(truth.fields.frame_id)
+            return []
+        self._add_truth(_rows(truth.states, slice(row, row + 1)))
+        return []
+
+    def _wrong_frame(self, frame_id: str) -> None:
+        self.error(
+            f"{self.spec.truth_topic}: header.frame_id {frame_id!r} is not the Earth frame "
+            f"{self.earth_frame!r}; dropped"
+        )
+
+    def _set_period(self, period_ns: int, how: str = "from the stamps") -> bool:
         if period_ns <= 0:
             return False
         if self.nav_period_s > 0:
@@ -795,112 +794,26 @@ class NavigatorSolver:
             if abs(n - round(n)) > 1e-6 or round(n) < 1:
                 self.failed = (
                     f"nav_period_s = {self.nav_period_s:g} s is not a whole multiple of the IMU "
-                    f"period T = {period_ns} ns detected from the stamps"
+                    f"period T = {period_ns} ns {how}"
                 )
                 self.error(self.failed)
                 return False
-            self.settings = dataclasses.replace(self.settings, n=int(round(n)))
+            self.n = int(round(n))
         self.period_ns = period_ns
         self.info(
-            f"IMU period T = {period_ns} ns ({1e9 / period_ns:g} Hz) from the stamps; "
-            f"T_nav = N T = {self.settings.n} x T = {self.settings.n * period_ns * 1e-9:g} s, "
-            f"P = {self.settings.p}"
+            f"IMU period T = {period_ns} ns ({1e9 / period_ns:g} Hz) {how}; "
+            f"T_nav = N T = {self.n} x T = {self.n * period_ns * 1e-9:g} s, P = {self.spec.p}"
         )
         return True
 
-    # -- input -------------------------------------------------------------------------------
-
-    def on_truth(self, payload: bytes) -> list[tuple[str, int, bytes]]:
-        """One raw Odometry payload of the truth topic; returns what to publish."""
-        try:
-            fields = cdr.deserialize(cdr.ODOMETRY, [payload])
-        except cdr.CdrError as exc:
-            self.error(f"{self.settings.truth_topic}: rejected a malformed Odometry: {exc}")
-            return []
-        if not self._earth_frame_ok(fields):
-            return []
-        self._add_truth(odometry_state(fields))  # type: ignore[arg-type]
-        return self._advance()
-
-    def on_imu(self, payload: bytes) -> list[tuple[str, int, bytes]]:
-        """One raw Imu payload; returns what to publish."""
-        try:
-            fields = cdr.deserialize(cdr.IMU, [payload])
-        except cdr.CdrError as exc:
-            self.error(f"{self.settings.imu_topic}: rejected a malformed Imu: {exc}")
-            return []
-        return self._on_imu_fields(fields)
-
-    def on_batch(self, items: list[tuple[str, bytes]]) -> list[tuple[str, int, bytes]]:
-        """Raw payloads ``(kind, payload)`` (kind 'imu' | 'truth') in arrival order.
-
-        Returns what :meth:`on_imu` / :meth:`on_truth` called one by one return, in the same
-        order (the same bytes; tested), at a fraction of the cost: each topic's payloads are
-        decoded with one CDR call, and outputs are collected once per batch while the run
-        simply continues. A message that could change the run (no run yet, a gap, a repeat)
-        takes the one-by-one path, which flushes the run's pending outputs first. A batch
-        that does not decode as a whole (a malformed message, mixed frame ids) is taken one by
-        one, so every message gets its own verdict.
-        """
-        imu = self._decode_rows(cdr.IMU, [p for k, p in items if k == "imu"])
-        truth = self._decode_rows(cdr.ODOMETRY, [p for k, p in items if k == "truth"])
-        states = None  # a wrong frame id: one by one, each message is reported
-        if truth is not None and truth[0].frame_id == self.earth_frame:
-            states = odometry_state(truth[0])
-        out: list[tuple[str, int, bytes]] = []
-        i_imu = i_truth = 0
-        for kind, payload in items:
-            if kind == "truth":
-                i, i_truth = i_truth, i_truth + 1
-                if states is None:
-                    out += self.on_truth(payload)
-                    continue
-                self._add_truth(EarthState(*(a[i : i + 1] for a in states)))
-                continue
-            i, i_imu = i_imu, i_imu + 1
-            if imu is None:
-                out += self.on_imu(payload)
-                continue
-            fields, stamps = imu
-            run = self.run
-            if run is None or self.period_ns is None or int(stamps[i]) != run.next_imu_ns:
-                out += self._on_imu_fields(fields.rows(i, i + 1))  # type: ignore[attr-defined]
-            else:
-                self._queue(int(stamps[i]), fields.rows(i, i + 1))  # type: ignore[attr-defined]
-        return out + self._advance()
-
-    @staticmethod
-    def _decode_rows(msgtype: str, payloads: list[bytes]) -> tuple[Any, np.ndarray] | None:
-        """All ``payloads`` decoded at once (fields, stamps), or None if they do not decode."""
-        if not payloads:
-            return None
-        try:
-            fields = cdr.deserialize(msgtype, payloads)
-        except cdr.CdrError:
-            return None
-        return fields, np.asarray(fields.stamps_ns, dtype=np.int64)  # type: ignore[attr-defined]
-
-    def _earth_frame_ok(self, fields: Any) -> bool:
-        if fields.frame_id == self.earth_frame:
-            return True
-        self.error(
-            f"{self.settings.truth_topic}: header.frame_id "
-            f"{fields.frame_id!r} is not the Earth frame {self.earth_frame!r}; dropped"
-        )
-        return False
-
     def _add_truth(self, state: EarthState) -> None:
-        """Keep one truth row (for run starts) and hand it to the current run."""
-        stamp = int(state.stamps_ns[0])
-        self.truth[stamp] = state
-        if len(self.truth) > TRUTH_KEEP:
-            for s in sorted(self.truth)[: len(self.truth) - TRUTH_KEEP]:
-                del self.truth[s]
+        """Keep truth rows (for run starts) and hand them to the current run."""
+        self.truth.add(state)
         if self.run is not None:
             self.run.add_truth(state)
 
-    def _on_imu_fields(self, fields: Any) -> list[tuple[str, int, bytes]]:
-        """One decoded Imu message; returns what to publish."""
+    def _on_imu_fields(self, fields: Any) -> list[NavigatorOutputs]:
+        """One decoded Imu message; returns the output groups now complete."""
         stamp = int(fields.stamps_ns[0])
         if self.period_ns is None:
             if self.failed:
@@ -926,21 +839,20 @@ class NavigatorSolver:
             except StreamError as exc:
                 expected = self.run.next_imu_ns
                 if stamp < expected:
-                    self.warn(f"{self.settings.imu_topic}: {exc}; dropped")
+                    self.warn(f"{self.spec.imu_topic}: {exc}; dropped")
                     return
                 self.warn(
-                    f"{self.settings.imu_topic}: {exc} "
+                    f"{self.spec.imu_topic}: {exc} "
                     f"({(stamp - expected) // self.period_ns} message(s) missing after "
                     f"{format_stamp(expected - self.period_ns)}); the run that started at "
                     f"{format_stamp(self.run.start_ns)} ends at its last complete cycle and a "
                     "new run starts from the truth before the next message"
                 )
-                self._flush_pending = self._outputs_of(self.run)
+                last = self._outputs_of(self.run)
+                self._flush_pending = [] if last is None else [last]
                 self.run = None
         if self.imu_buffer and stamp <= self.imu_buffer[-1][0]:
-            self.warn(
-                f"{self.settings.imu_topic}: stamp {format_stamp(stamp)} out of order; dropped"
-            )
+            self.warn(f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} out of order; dropped")
             return
         if self.imu_buffer and stamp != self.imu_buffer[-1][0] + self.period_ns:
             self.imu_buffer.clear()  # a gap before any run started: restart the search
@@ -951,9 +863,9 @@ class NavigatorSolver:
     def _try_start(self) -> None:
         if self.run is not None or self.period_ns is None or not self.imu_buffer:
             return
-        st, t = self.settings, self.period_ns
-        if st.initialization == "scenario":
-            assert self.start_ns is not None and self.scenario_initial is not None
+        spec, t = self.spec, self.period_ns
+        if spec.initialization == "scenario":
+            assert self.start_ns is not None and self.initial is not None
             while self.imu_buffer and self.imu_buffer[0][0] < self.start_ns + t:
                 self.imu_buffer.pop(0)
             if not self.imu_buffer or self.imu_buffer[0][0] != self.start_ns + t:
@@ -965,28 +877,38 @@ class NavigatorSolver:
                     )
                     self.error(self.failed)
                 return
-            initial = initial_state_from_scenario(self.scenario_initial, st)
-            self._start(self.start_ns, initial, None)
+            self._start(self.start_ns, initial_state_from_scenario(self.initial, spec), None)
             return
-        for s in sorted(self.truth):
-            while self.imu_buffer and self.imu_buffer[0][0] < s + t:
-                self.imu_buffer.pop(0)
-            if not self.imu_buffer:
-                return
-            if self.imu_buffer[0][0] == s + t:
-                state = self.truth[s]
-                self._start(s, initial_state_from_truth(state, 0, st), state.omega_eb_b[0])
-                return
+        truth = self.truth.sorted()
+        if truth is None:
+            return
+        # The first truth stamp s (in stamp order) whose next IMU message s + T is buffered;
+        # the IMU messages before s + T (or, without one, before the last s + T) are dropped.
+        stamps = np.asarray(truth.stamps_ns, dtype=np.int64)
+        buffered = np.array([b[0] for b in self.imu_buffer], dtype=np.int64)
+        hits = np.flatnonzero(np.isin(stamps + t, buffered))
+        cut = int(stamps[hits[0]] if hits.size else stamps[-1]) + t
+        del self.imu_buffer[: int(np.searchsorted(buffered, cut))]
+        if hits.size:
+            row = int(hits[0])
+            self._start(
+                int(stamps[row]),
+                initial_state_from_truth(truth, row, spec),
+                np.asarray(truth.omega_eb_b)[row],
+            )
 
-    def _start(self, start_ns: int, initial: Any, omega: Any) -> None:
+    def _start(self, start_ns: int, initial: NavState, omega: F64 | None) -> None:
         assert self.period_ns is not None
-        st = self.settings
+        spec = self.spec
         self.run = NavigatorRun(
-            st, start_ns, self.period_ns, initial, bool(st.truth_topic), omega, self.earth_frame
-        )
-        for s in sorted(self.truth):
-            if s >= start_ns:
-                self.run.add_truth(self.truth[s])
+            spec, start_ns, self.period_ns, initial, bool(spec.truth_topic), omega,
+            self.earth_frame, self.n,
+        )  # fmt: skip
+        truth = self.truth.sorted()
+        if truth is not None:
+            after = np.flatnonzero(np.asarray(truth.stamps_ns) >= start_ns)
+            if after.size:
+                self.run.add_truth(_rows(truth, after))
         buf, self.imu_buffer = self.imu_buffer, []
         if buf:
             self.run.add_imu(
@@ -995,24 +917,90 @@ class NavigatorSolver:
                 np.concatenate([b[2] for b in buf]),
             )
         self.runs += 1
-        how = "truth" if st.initialization == "truth" else "the scenario's initial state"
+        how = "truth" if spec.initialization == "truth" else "the scenario's initial state"
         self.info(f"run {self.runs} starts at {format_stamp(start_ns)} (initial state from {how})")
 
-    def _advance(self) -> list[tuple[str, int, bytes]]:
+    def _advance(self) -> list[NavigatorOutputs]:
         flushed, self._flush_pending = self._flush_pending, []
         self._try_start()
         if self.run is None:
             return flushed
-        return flushed + self._outputs_of(self.run)
+        out = self._outputs_of(self.run)
+        return flushed if out is None else [*flushed, out]
 
-    def _outputs_of(self, run: NavigatorRun) -> list[tuple[str, int, bytes]]:
+    def _outputs_of(self, run: NavigatorRun) -> NavigatorOutputs | None:
         out = run.outputs()
         if out is None:
-            return []
-        batches: list[Batch] = [batch(self.output_topics[k], f) for k, f in out.items()]
+            return None
         self.published_outputs += len(out)
         self.last_output_ns = int(out.odom.stamps_ns[-1])
-        return [
-            (batches[b].topic, int(batches[b].stamps_ns[i]), batches[b].payloads[i])
-            for b, i, _ in merge_order(batches)
-        ]
+        if out.error_position is not None:
+            dr = np.asarray(out.error_position.vector)
+            horizontal = np.hypot(dr[:, 0], dr[:, 1])
+            self.final_errors = {
+                "horizontal_m": float(horizontal[-1]),
+                "vertical_m": float(abs(dr[-1, 2])),
+                "max_horizontal_m": max(
+                    self.final_errors.get("max_horizontal_m", 0.0), float(horizontal.max())
+                ),
+            }
+        return out
+
+    # -- serialization -----------------------------------------------------------------------
+
+    def _batches(self, group: NavigatorOutputs) -> list[Batch]:
+        return [batch(self.output_topics[k], f) for k, f in group.items()]
+
+    def _messages(self, groups: list[NavigatorOutputs]) -> list[Message]:
+        out: list[Message] = []
+        for group in groups:
+            batches = self._batches(group)
+            out += [
+                (batches[b].topic, int(batches[b].stamps_ns[i]), batches[b].payloads[i])
+                for b, i, _ in merge_order(batches)
+            ]
+        return out
+
+
+def navigate_messages(
+    spec: NavigatorSpec,
+    imu: ImuFields,
+    truth: OdometryFields | None,
+    earth_frame: str = "earth",
+    output_topics: Mapping[str, str] | None = None,
+    initial: Initial | None = None,
+    start_ns: int | None = None,
+) -> dict[str, list[bytes]]:
+    """What ``navigator_node`` publishes for whole topics received in stamp order (truth
+    before Imu at equal stamps): output key (:data:`OUTPUT_TOPICS`) → payloads.
+
+    ``spec``: resolved; ``initial``, ``start_ns``: for ``initialization: scenario``. Used by
+    ``strapdown-sim replay`` to check a live replay.
+    """
+    topics = dict(output_topics or {k: k for k in OUTPUT_TOPICS})
+    stage = NavigationStage(
+        spec, topics, initial=initial, start_ns=start_ns, earth_frame=earth_frame
+    )
+    n_truth = 0 if truth is None else len(truth.stamps_ns)
+    stamps = np.concatenate(
+        [np.asarray(truth.stamps_ns if truth is not None else [], dtype=np.int64),
+         np.asarray(imu.stamps_ns, dtype=np.int64)]
+    )  # fmt: skip
+    order = np.argsort(stamps, kind="stable")
+    out: dict[str, list[bytes]] = {}
+    by_topic = {v: k for k, v in topics.items()}
+    for topic, _, payload in stage.feed_fields(imu, truth, order >= n_truth):
+        out.setdefault(by_topic[topic], []).append(bytes(payload))
+    return out
+
+
+def input_end_ns(scenario: Scenario, imu_topic: str) -> int | None:
+    """Last IMU stamp of the scenario's stream on ``imu_topic`` (None if unknown)."""
+    from strapdown_ros.stages.reference import build_trajectory, output_cycles
+
+    key = next((k for k, v in scenario.recording.topics.items() if v == imu_topic), None)
+    if key not in INPUT_STREAMS:
+        return None
+    cycles = output_cycles(scenario, build_trajectory(scenario))
+    last = cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
+    return scenario.start_time_ns + last * scenario.period_ns

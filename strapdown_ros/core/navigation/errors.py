@@ -23,9 +23,42 @@ from strapdown_ros.core.rotations import dcm_from_quat
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.young import young_error_angles
 
-__all__ = ["NavErrors", "navigation_errors"]
+__all__ = [
+    "NavErrors",
+    "attitude_error_young",
+    "navigation_errors",
+    "position_error_ned",
+    "velocity_error_ned",
+]
 
 Array = NDArray[np.float64]
+
+
+def position_error_ned(r_nav_e: Array, r_true_e: Array, lat_true: Array, lon_true: Array) -> Array:
+    """Position error ``C_E^N(true) (r_nav - r_true)`` (m, NED of the true position).
+
+    Parameters
+    ----------
+    r_nav_e, r_true_e : arrays (K, 3)
+        Navigation and true positions, ECEF (m).
+    lat_true, lon_true : arrays (K,)
+        Geodetic latitude and longitude of the true position (rad).
+    """
+    return np.einsum("nij,nj->ni", dcm_ecef_to_ned(lat_true, lon_true), r_nav_e - r_true_e)
+
+
+def velocity_error_ned(v_nav_ned: Array, v_true_ned: Array) -> Array:
+    """Velocity error ``v_nav - v_true`` (m/s), each ground velocity in its own NED frame."""
+    return v_nav_ned - v_true_ned
+
+
+def attitude_error_young(c_b_n_nav: Array, c_b_n_true: Array) -> Array:
+    """Attitude error: Young 1980 eq. (28) angles (θ1, θ2, θ3) (rad).
+
+    About the (up, east, north) axes of the true local level, of ``H = C_B^N(nav)
+    C_B^N(true)ᵀ`` (:func:`~strapdown_ros.core.young.young_error_angles`).
+    """
+    return young_error_angles(c_b_n_nav, c_b_n_true)
 
 
 @dataclass(frozen=True)
@@ -71,11 +104,10 @@ def navigation_errors(solution: NavSolution, truth: Stream) -> NavErrors:
     t, lat, lon, alt, v_ned, q = truth_navigation(truth, index)
     r_true = geodetic_to_ecef(lat, lon, alt)
     r_nav = geodetic_to_ecef(solution.lat, solution.lon, solution.alt)
-    dr = np.einsum("nij,nj->ni", dcm_ecef_to_ned(lat, lon), r_nav - r_true)
     return NavErrors(
         t=t,
         index=index,
-        position_ned=dr,
-        velocity_ned=solution.v_ned - v_ned,
-        attitude_young=young_error_angles(dcm_from_quat(solution.q_b_n), dcm_from_quat(q)),
+        position_ned=position_error_ned(r_nav, r_true, lat, lon),
+        velocity_ned=velocity_error_ned(solution.v_ned, v_ned),
+        attitude_young=attitude_error_young(dcm_from_quat(solution.q_b_n), dcm_from_quat(q)),
     )

@@ -1,0 +1,309 @@
+"""The ``navigator`` section: which IMU stream the navigator runs on, and how.
+
+:class:`NavigatorSpec` holds every key with its limits; keys whose default depends on the rest
+of the scenario (``mode`` on ``algorithm``; ``imu_topic``, ``truth_topic`` on the recording
+topics; ``gravity_model`` on the scenario's) are ``None`` until :func:`resolve_navigator` fills
+them in. Keys: docs/scenarios.md; the navigator: docs/navigator.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, field_validator, model_validator
+
+from strapdown_ros.config.base import (
+    Model,
+    NonNegative,
+    ScenarioError,
+    StrictBool,
+    StrictInt,
+    Vector3,
+)
+
+if TYPE_CHECKING:
+    from strapdown_ros.config.scenario import Scenario
+
+__all__ = [
+    "INPUT_STREAMS",
+    "OUTPUT_TOPICS",
+    "InitialErrors",
+    "NavigatorSpec",
+    "VerticalDampingSpec",
+    "check_navigator",
+    "navigator_spec",
+    "resolve_navigator",
+]
+
+#: Input IMU stream key (``recording.topics``) → (its truth Odometry key, section it needs).
+INPUT_STREAMS: dict[str, tuple[str, str | None]] = {
+    "reference_imu": ("reference_odom", None),
+    "variation_imu": ("variation_odom", "variation"),
+    "variation_reference_imu": ("variation_reference_odom", "variation"),
+    "variation_imu_measured": ("variation_odom", "imu_errors"),
+}
+
+#: Navigator output key → ``recording.topics`` key of its topic.
+OUTPUT_TOPICS: dict[str, str] = {
+    "odom": "navigator_odom",
+    "fix": "navigator_fix",
+    "error_position": "navigator_error_position",
+    "error_velocity": "navigator_error_velocity",
+    "error_attitude": "navigator_error_attitude",
+}
+
+
+class _Section(Model):
+    """A mapping whose ``null`` values mean "the default" (as the old reader had it)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _null_is_default(cls, data: Any) -> Any:
+        if isinstance(data, Mapping):
+            return {k: v for k, v in data.items() if v is not None}
+        return data
+
+
+class InitialErrors(_Section):
+    """Errors added to the initial state: position NED (m) and velocity NED (m/s) in the true
+    local level, attitude offsets of roll, pitch and heading (deg)."""
+
+    position_ned_m: Vector3 = (0.0, 0.0, 0.0)
+    velocity_ned_mps: Vector3 = (0.0, 0.0, 0.0)
+    attitude_rph_deg: Vector3 = (0.0, 0.0, 0.0)
+
+
+class VerticalDampingSpec(_Section):
+    """Vertical-channel damping gains (paper mode): ``k1`` (1/s), ``k2`` (1/s²), and Table 1's
+    printed signs (docs/navigator.md)."""
+
+    k1: NonNegative = 1.0
+    k2: NonNegative = 1.0
+    paper_signs: StrictBool = False
+
+
+def _default_mode(algorithm: str) -> str:
+    return "exact" if algorithm == "multirate" else "paper"
+
+
+class NavigatorSpec(Model):
+    """The ``navigator`` section (docs/scenarios.md).
+
+    ``mode``, ``imu_topic``, ``truth_topic`` and ``gravity_model`` are None for "the default"
+    as written in the file; :func:`resolve_navigator` returns a copy with all four set
+    (``truth_topic`` ``""``: no truth topic, hence no error topics).
+    """
+
+    algorithm: Literal["multirate", "simultaneous"] = "multirate"
+    mode: Literal["paper", "exact"] | None = None
+    n: Annotated[StrictInt, Field(ge=1)] = 10
+    p: Annotated[StrictInt, Field(ge=1)] = 2
+    imu_topic: str | None = None
+    truth_topic: str | None = None
+    initialization: Literal["truth", "scenario"] = "truth"
+    initial_errors: InitialErrors = Field(default_factory=InitialErrors)
+    vertical_damping: VerticalDampingSpec | None = None
+    gravity_model: Literal["j2", "spherical"] | None = None
+    table1_radii: StrictBool = False
+    normalize_quaternion: StrictBool = True
+    frame_id: str = "navigator"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _nulls(cls, data: Any) -> Any:
+        if not isinstance(data, Mapping):
+            return data
+        keep = ("imu_topic", "frame_id")  # null is no topic / frame id: rejected below
+        out = {k: v for k, v in data.items() if v is not None or k in keep}
+        if "truth_topic" in data and data["truth_topic"] is None:
+            out["truth_topic"] = ""  # null: no truth topic
+        return out
+
+    @field_validator("imu_topic", mode="before")
+    @classmethod
+    def _imu_topic(cls, value: Any) -> Any:
+        if not isinstance(value, str) or not value.startswith("/"):
+            raise ValueError(f"must be an absolute topic, got {value!r}")
+        return value
+
+    @field_validator("truth_topic", mode="before")
+    @classmethod
+    def _truth_topic(cls, value: Any) -> Any:
+        if not isinstance(value, str) or (value and not value.startswith("/")):
+            raise ValueError(f"must be an absolute topic or empty, got {value!r}")
+        return value
+
+    @field_validator("frame_id", mode="before")
+    @classmethod
+    def _frame_id(cls, value: Any) -> Any:
+        if not isinstance(value, str) or not value or " " in value:
+            raise ValueError(f"must be a frame id, got {value!r}")
+        return value
+
+    @field_validator("vertical_damping", mode="before")
+    @classmethod
+    def _damping(cls, value: Any) -> Any:
+        if value is True:
+            return {}
+        if value is False:
+            return None
+        if not isinstance(value, Mapping):
+            raise ValueError(f"must be true, false or a mapping, got {value!r}")
+        return value
+
+    @model_validator(mode="after")
+    def _combinations(self) -> NavigatorSpec:
+        mode = self.mode or _default_mode(self.algorithm)
+        if self.algorithm == "simultaneous" and mode != "paper":
+            raise ScenarioError("mode", "the simultaneous scheme (Table 2) has only 'paper'")
+        if self.vertical_damping is not None and mode == "exact":
+            raise ScenarioError("vertical_damping", "vertical damping is a 'paper' mode option")
+        return self
+
+    # -- derived values (SI) ------------------------------------------------------------------
+
+    @property
+    def resolved(self) -> bool:
+        """Whether the scenario-dependent defaults are filled in (:func:`resolve_navigator`)."""
+        return None not in (self.mode, self.imu_topic, self.truth_topic, self.gravity_model)
+
+    @property
+    def position_error_ned(self) -> NDArray[np.float64]:
+        """Initial position error, NED of the true position (m)."""
+        return np.array(self.initial_errors.position_ned_m)
+
+    @property
+    def velocity_error_ned(self) -> NDArray[np.float64]:
+        """Initial velocity error, NED (m/s)."""
+        return np.array(self.initial_errors.velocity_ned_mps)
+
+    @property
+    def attitude_error_rph(self) -> NDArray[np.float64]:
+        """Initial roll, pitch, heading offsets (rad)."""
+        return np.radians(np.array(self.initial_errors.attitude_rph_deg))
+
+    def _resolve(self, topics: Mapping[str, str], gravity_model: str) -> NavigatorSpec:
+        imu = self.imu_topic or topics.get("variation_imu", "/variation/imu")
+        key = topic_key(topics, imu)
+        default_truth = topics.get(INPUT_STREAMS[key][0], "") if key in INPUT_STREAMS else ""
+        truth = default_truth if self.truth_topic is None else self.truth_topic
+        if self.initialization == "truth" and not truth:
+            raise ScenarioError("navigator.initialization", "'truth' needs a truth_topic")
+        if self.initialization == "scenario" and key not in (None, "reference_imu"):
+            raise ScenarioError(
+                "navigator.initialization",
+                "'scenario' initializes from the reference IMU's initial state; use it with "
+                f"imu_topic {topics.get('reference_imu', '/reference/imu')!r} or use 'truth'",
+            )
+        if self.vertical_damping is not None and not truth:
+            raise ScenarioError(
+                "navigator.vertical_damping",
+                "needs a truth_topic (its altitude is the auxiliary altitude)",
+            )
+        return self.model_copy(
+            update={
+                "mode": self.mode or _default_mode(self.algorithm),
+                "imu_topic": imu,
+                "truth_topic": truth,
+                "gravity_model": self.gravity_model or gravity_model,
+            }
+        )
+
+
+def topic_key(topics: Mapping[str, str], name: str) -> str | None:
+    """The ``recording.topics`` key of topic ``name`` (None if it is none of them)."""
+    for key, value in topics.items():
+        if value == name:
+            return key
+    return None
+
+
+def resolve_navigator(
+    spec: NavigatorSpec,
+    topics: Mapping[str, str],
+    gravity_model: str,
+    scenario: Scenario | None = None,
+) -> NavigatorSpec:
+    """``spec`` with its scenario-dependent defaults filled in, checked against the scenario.
+
+    Parameters
+    ----------
+    spec : NavigatorSpec
+        The section as written (or built from node parameters).
+    topics : mapping
+        ``recording.topics`` (stream key → topic name).
+    gravity_model : str
+        The default gravitation model (the scenario's).
+    scenario : Scenario, optional
+        With a scenario, the input must be one of its IMU streams (with the section that stream
+        needs) and ``initialization: scenario`` needs its ``initial``. None: not checked
+        (``navigator_node`` without a scenario).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the key (``navigator.imu_topic: ...``).
+    """
+    if scenario is not None:
+        imu = spec.imu_topic or topics["variation_imu"]
+        key = topic_key(topics, imu)
+        if key not in INPUT_STREAMS:
+            names = ", ".join(topics[k] for k in INPUT_STREAMS if k in topics)
+            raise ScenarioError(
+                "navigator.imu_topic", f"{imu!r} is not an IMU stream; one of: {names}"
+            )
+        needs = INPUT_STREAMS[key][1]
+        if needs is not None and getattr(scenario, needs) is None:
+            raise ScenarioError(
+                "navigator.imu_topic", f"{imu!r} needs a '{needs}' section in the scenario"
+            )
+    resolved = spec._resolve(topics, gravity_model)
+    if scenario is not None and resolved.initialization == "scenario" and scenario.initial is None:
+        raise ScenarioError(
+            "navigator.initialization", "'scenario' needs the scenario's 'initial' state"
+        )
+    return resolved
+
+
+def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:
+    """The scenario's ``navigator`` section, resolved (None without one)."""
+    if scenario.navigator is None:
+        return None
+    return resolve_navigator(
+        scenario.navigator, scenario.recording.topics, scenario.gravity_model, scenario
+    )
+
+
+#: Truth Odometry stream key → the section it needs.
+TRUTH_STREAMS: dict[str, str | None] = {
+    "reference_odom": None,
+    "variation_odom": "variation",
+    "variation_reference_odom": "variation",
+}
+
+
+def check_navigator(scenario: Scenario) -> None:
+    """Cross-field rules of ``navigator`` (called by the scenario's validation): those of
+    :func:`resolve_navigator`, and the truth topic must be an Odometry stream the scenario
+    produces (``generate`` has no other)."""
+    spec = navigator_spec(scenario)
+    if spec is None or not spec.truth_topic:
+        return
+    topics = scenario.recording.topics
+    key = topic_key(topics, spec.truth_topic)
+    if key not in TRUTH_STREAMS:
+        names = ", ".join(topics[k] for k in TRUTH_STREAMS)
+        raise ScenarioError(
+            "navigator.truth_topic",
+            f"{spec.truth_topic!r} is not an Odometry stream of the scenario; one of: {names} "
+            "(or empty: none)",
+        )
+    needs = TRUTH_STREAMS[key]
+    if needs is not None and getattr(scenario, needs) is None:
+        raise ScenarioError(
+            "navigator.truth_topic",
+            f"{spec.truth_topic!r} needs a '{needs}' section in the scenario",
+        )
