@@ -208,6 +208,9 @@ def test_igrf_synthesis_matches_pyigrf14(year):
                                                                                   strict=True)]
     )  # fmt: skip
     assert np.max(np.abs(ours - ref)) < 0.05
+    one_by_one = np.concatenate([igrf_field_ned(r[i : i + 1], np.radians(lat[i : i + 1]), g, h)
+                                 for i in range(len(lat))])  # fmt: skip
+    assert np.array_equal(one_by_one, ours)  # chunk-invariant (sums over m sequential)
 
 
 def test_magnetometer_errors_and_chunks():

@@ -123,6 +123,21 @@ class TruthRows(NamedTuple):
         return TruthRows(*(a[idx] for a in self))
 
 
+def _take_rows(odom: OdometryFields, idx: np.ndarray) -> OdometryFields:
+    """Odometry messages ``idx`` (any rows) as a field container."""
+    return OdometryFields(
+        stamps_ns=np.asarray(odom.stamps_ns)[idx],
+        frame_id=odom.frame_id,
+        child_frame_id=odom.child_frame_id,
+        position=np.asarray(odom.position)[idx],
+        orientation=np.asarray(odom.orientation)[idx],
+        pose_covariance=np.asarray(odom.pose_covariance)[idx],
+        twist_linear=np.asarray(odom.twist_linear)[idx],
+        twist_angular=np.asarray(odom.twist_angular)[idx],
+        twist_covariance=np.asarray(odom.twist_covariance)[idx],
+    )
+
+
 class AidingOutput(NamedTuple):
     """Messages of one topic: field container and their release (bag log) times, ns."""
 
@@ -419,13 +434,18 @@ class AidingStream:
             odom, stamps = odom.rows(first, len(stamps)), stamps[first:]
         if not len(stamps):
             return []
-        st = odometry_state(odom)
-        truth = TruthRows(st.stamps_ns, st.r_e, st.v_e, st.c_b_e, st.omega_eb_b)
         self.last_truth_ns = int(stamps[-1])
-        parts = []
+        # The truth state of the messages that are an epoch of some sensor (row by row: the
+        # same numbers whatever rows are decoded together).
+        epoch = np.zeros(len(stamps), dtype=bool)
         for ch in self.channels:
-            parts.append(ch.feed(truth))
-            parts.append(ch.release(self.last_truth_ns))
+            epoch |= stamps % ch.period_ns == 0
+        parts = []
+        if np.any(epoch):
+            st = odometry_state(_take_rows(odom, np.flatnonzero(epoch)))
+            truth = TruthRows(st.stamps_ns, st.r_e, st.v_e, st.c_b_e, st.omega_eb_b)
+            parts += [ch.feed(truth) for ch in self.channels]
+        parts += [ch.release(self.last_truth_ns) for ch in self.channels]
         out = _merge(parts)
         order = {t: i for i, t in enumerate(self.topics)}
         out.sort(key=lambda o: order[o.topic])

@@ -9,6 +9,7 @@ Gauss-coefficient model (IGRF; the coefficients are plain arrays supplied by the
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +33,27 @@ IGRF_REFERENCE_RADIUS_M = 6371200.0
 
 #: Standard normals per epoch: white 3.
 MAG_NORMALS_PER_EPOCH = 3
+
+
+@functools.lru_cache(maxsize=4)
+def _recursion_factors(nmax: int) -> tuple[Array, Array, Array]:
+    """Factors of the Schmidt semi-normalized recursions up to degree ``nmax``.
+
+    ``P_n^m = a1 cos θ P_{n−1}^m − a2 P_{n−2}^m`` (m < n) with
+    ``a1 = (2n − 1)/√(n² − m²)``, ``a2 = √((n − 1)² − m²)/√(n² − m²)``; ``P_n^n = d_n sin θ
+    P_{n−1}^{n−1}`` with ``d_1 = 1``, ``d_n = √((2n − 1)/(2n))``.
+    """
+    a1 = np.zeros((nmax + 1, nmax + 1))
+    a2 = np.zeros((nmax + 1, nmax + 1))
+    diag = np.ones(nmax + 1)
+    for n in range(1, nmax + 1):
+        if n > 1:
+            diag[n] = np.sqrt((2.0 * n - 1.0) / (2.0 * n))
+        for m in range(n):
+            a1[n, m] = (2.0 * n - 1.0) / np.sqrt(n * n - m * m)
+            if n - 2 >= m:
+                a2[n, m] = np.sqrt((n - 1.0) ** 2 - m * m) / np.sqrt(n * n - m * m)
+    return a1, a2, diag
 
 
 def igrf_field_ned(
@@ -66,6 +88,7 @@ def igrf_field_ned(
     g = np.asarray(g, dtype=np.float64)
     h = np.asarray(h, dtype=np.float64)
     nmax = g.shape[0] - 1
+    a1, a2, diag = _recursion_factors(nmax)
     x, y, z = r_e[:, 0], r_e[:, 1], r_e[:, 2]
     p = np.hypot(x, y)
     r = np.hypot(p, z)
@@ -82,38 +105,33 @@ def igrf_field_ned(
     for m in range(2, nmax + 1):
         cm[m] = cm[m - 1] * cm[1] - sm[m - 1] * sm[1]
         sm[m] = sm[m - 1] * cm[1] + cm[m - 1] * sm[1]
+    # P_n^m and dP_n^m/dθ for m = 0..n, one degree at a time (vectorized over m and points).
     pnm = np.zeros((nmax + 1, nmax + 1, npts))
-    dnm = np.zeros((nmax + 1, nmax + 1, npts))  # dP/dθ
+    dnm = np.zeros((nmax + 1, nmax + 1, npts))
     pnm[0, 0] = 1.0
     bx = np.zeros(npts)  # X_gc = -B_θ
-    by = np.zeros(npts)  # Y = B_λ
+    by = np.zeros(npts)  # Y = B_λ (times sin θ until the end)
     bz = np.zeros(npts)  # Z_gc = -B_r
     rr = ratio * ratio
+    orders = np.arange(nmax + 1, dtype=np.float64)[:, None]
     for n in range(1, nmax + 1):
         rr = rr * ratio  # (a/r)^{n+2}
-        for m in range(n + 1):
-            if m == n:
-                if n == 1:
-                    pnm[1, 1] = st
-                    dnm[1, 1] = ct
-                else:
-                    k = np.sqrt((2.0 * n - 1.0) / (2.0 * n))
-                    pnm[n, n] = k * st * pnm[n - 1, n - 1]
-                    dnm[n, n] = k * (st * dnm[n - 1, n - 1] + ct * pnm[n - 1, n - 1])
-            else:
-                a1 = (2.0 * n - 1.0) / np.sqrt(n * n - m * m)
-                a2 = np.sqrt((n - 1.0) ** 2 - m * m) / np.sqrt(n * n - m * m)
-                pnm[n, m] = a1 * ct * pnm[n - 1, m]
-                dnm[n, m] = a1 * (ct * dnm[n - 1, m] - st * pnm[n - 1, m])
-                if n - 2 >= m:
-                    pnm[n, m] = pnm[n, m] - a2 * pnm[n - 2, m]
-                    dnm[n, m] = dnm[n, m] - a2 * dnm[n - 2, m]
-            gc = g[n, m] * cm[m] + h[n, m] * sm[m]
-            bx = bx + rr * gc * dnm[n, m]
-            bz = bz - rr * (n + 1.0) * gc * pnm[n, m]
-            if m > 0:
-                gs = g[n, m] * sm[m] - h[n, m] * cm[m]
-                by = by + rr * m * gs * pnm[n, m]
+        k = slice(0, n)  # m < n
+        pnm[n, k] = a1[n, k, None] * ct * pnm[n - 1, k]
+        dnm[n, k] = a1[n, k, None] * (ct * dnm[n - 1, k] - st * pnm[n - 1, k])
+        if n >= 2:
+            pnm[n, k] -= a2[n, k, None] * pnm[n - 2, k]
+            dnm[n, k] -= a2[n, k, None] * dnm[n - 2, k]
+        pnm[n, n] = diag[n] * st * pnm[n - 1, n - 1]
+        dnm[n, n] = diag[n] * (st * dnm[n - 1, n - 1] + ct * pnm[n - 1, n - 1])
+        m = slice(0, n + 1)
+        gc = g[n, m, None] * cm[m] + h[n, m, None] * sm[m]
+        gs = g[n, m, None] * sm[m] - h[n, m, None] * cm[m]
+        # Sums over m as running sums (add.accumulate is sequential, so each point's sum has
+        # the same order whatever npts; .sum() may sum pairwise when npts = 1).
+        bx = bx + rr * np.cumsum(gc * dnm[n, m], axis=0)[-1]
+        bz = bz - rr * (n + 1.0) * np.cumsum(gc * pnm[n, m], axis=0)[-1]
+        by = by + rr * np.cumsum(orders[m] * gs * pnm[n, m], axis=0)[-1]
     with np.errstate(invalid="ignore", divide="ignore"):
         by = np.where(st > 0, by / np.where(st > 0, st, 1.0), 0.0)
     # Geocentric -> geodetic local level: rotate (X, Z) by δ = φ - φ_gc about east.
