@@ -396,3 +396,39 @@ def test_samples_kind_from_a_bag_odometry_topic(tmp_path):
                                                                  "topic": "/nope"}})  # fmt: skip
     proc = run_cli("validate", str(bad))
     assert proc.returncode == 2 and "trajectory.topic" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize(
+    ("trajectory", "message"),
+    [
+        ({"kind": "samples", "file": "missing.csv"}, "trajectory.file: '"),
+        ({"kind": "samples", "file": "truth.csv", "knots": [0, 1, 99]},
+         "trajectory.knots: position spline: breakpoints"),
+        ({"kind": "samples", "bag": "nobag"}, "trajectory.bag: "),
+        ({"kind": "segments", "segments": [{"duration_s": 10}, {"duration_s": 30,
+          "pitch_rate_dps": 5}]}, "trajectory.segments[1].pitch_rate_dps: pitch would reach"),
+        ({"kind": "segments", "segments": [{"duration_s": 5, "climb_rate_mps": 2,
+          "transition_s": 0}]}, "trajectory.segments[0].climb_rate_mps: changing the vertical"),
+    ],
+)  # fmt: skip
+def test_trajectory_build_errors_are_the_same_for_validate_and_generate(
+    tmp_path, capsys, trajectory, message
+):
+    """Problems only found while building the trajectory: exit 2, same message, no bag."""
+    from strapdown_ros import cli
+
+    (tmp_path / "truth.csv").write_text(
+        "t,lat_deg,lon_deg,alt_m\n" + "".join(f"{t},45,7,{100 + t}\n" for t in range(20))
+    )
+    path = write_scenario(
+        tmp_path, "s", {"rate_hz": 100, "initial": INITIAL, "trajectory": trajectory}
+    )
+    out = tmp_path / "bag"
+    messages = []
+    for args in (["validate", str(path)], ["generate", str(path), "--out", str(out), "--quiet"]):
+        assert cli.main(args) == 2
+        last = capsys.readouterr().err.strip().splitlines()[-1]
+        messages.append(last.split("invalid scenario: ", 1)[1])
+    assert messages[0] == messages[1]
+    assert messages[0].startswith(message), messages[0]
+    assert not out.exists()

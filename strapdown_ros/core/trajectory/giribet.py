@@ -120,8 +120,9 @@ def breakpoint_continuity(
         i = int(np.argmax(np.diff(bp) <= 0.0))
         raise TrajectoryError(
             ("knots",),
-            f"breakpoints must be strictly increasing (t[{i}]={bp[i]!r}, "
-            f"t[{i + 1}]={bp[i + 1]!r}); lower the continuity instead of repeating a knot",
+            f"breakpoints must be strictly increasing (t[{i}]={float(bp[i])!r}, "
+            f"t[{i + 1}]={float(bp[i + 1])!r}); lower the continuity instead of repeating a "
+            "knot",
         )
     c = np.asarray(continuity)
     if c.ndim == 0:
@@ -218,8 +219,8 @@ def _check_span(name: str, tau: Array, lo: float, hi: float) -> None:
     if tau.size and (tau[0] < lo or tau[-1] > hi):
         raise TrajectoryError(
             ("knots",),
-            f"{name} samples span [{tau[0]!r}, {tau[-1]!r}] s, outside the knot span "
-            f"[{lo!r}, {hi!r}] s",
+            f"{name} samples span [{float(tau[0])!r}, {float(tau[-1])!r}] s, outside the knot "
+            f"span [{float(lo)!r}, {float(hi)!r}] s",
         )
 
 
@@ -234,7 +235,7 @@ def _schoenberg_whitney(bp: Array, degree: int, tau: Array) -> None:
         i = int(bad[0])
         raise TrajectoryError(
             ("knots",),
-            f"interval [{bp[i]!r}, {bp[i + 1]!r}] s holds {int(count[i])} distinct "
+            f"interval [{float(bp[i])!r}, {float(bp[i + 1])!r}] s holds {int(count[i])} distinct "
             f"samples, a degree-{degree} spline needs at least {degree + 1} in every knot "
             f"interval (Giribet 2007 assumption (ii-c)); use wider knot spacing",
         )
@@ -705,7 +706,7 @@ def problem_q2(
         seg_t, seg_q = tau[i0:i1], qs[i0:i1]
         if seg_t.size < degree + 1 or abs(seg_t[0] - a) > 1e-9 * max(1.0, abs(a)):
             raise ValueError(
-                f"problem_q2: segment [{a!r}, {b!r}] has {seg_t.size} samples (need "
+                f"problem_q2: segment [{float(a)!r}, {float(b)!r}] has {seg_t.size} samples (need "
                 f"{degree + 1}) or does not start at a sample"
             )
         pieces.append(make_interp_spline(seg_t, seg_q, k=degree))

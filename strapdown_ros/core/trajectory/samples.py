@@ -238,8 +238,8 @@ def check_times(name: str, t: ArrayLike) -> Array:
     if np.any(d <= 0.0):
         i = int(np.argmax(d <= 0.0))
         raise ValueError(
-            f"{name}: times must be strictly increasing (sample {i + 1}: {t[i + 1]!r} after "
-            f"{t[i]!r})"
+            f"{name}: times must be strictly increasing (sample {i + 1}: {float(t[i + 1])!r} "
+            f"after {float(t[i])!r})"
         )
     return t
 
@@ -404,7 +404,7 @@ def _breakpoints(
         if bp.size and (bp.min() < -tol or bp.max() > duration + tol):
             raise TrajectoryError(
                 (kind, "knots"),
-                f"breakpoints [{bp.min()!r}, {bp.max()!r}] s outside the data span "
+                f"breakpoints [{float(bp.min())!r}, {float(bp.max())!r}] s outside the data span "
                 f"[0, {duration!r}] s (knots are seconds since the first sample)",
             )
         if bp.size == 0 or abs(bp[0]) > tol:
@@ -668,8 +668,8 @@ class SamplesTrajectory:
         tol = 1e-9 * max(1.0, self._duration)
         if t.size and (np.min(t) < -tol or np.max(t) > self._duration + tol):
             raise ValueError(
-                f"t: times [{np.min(t)!r}, {np.max(t)!r}] s outside the trajectory span "
-                f"[0, {self._duration!r}] s"
+                f"t: times [{float(np.min(t))!r}, {float(np.max(t))!r}] s outside the "
+                f"trajectory span [0, {self._duration!r}] s"
             )
         return np.clip(t, 0.0, self._duration)
 
