@@ -94,10 +94,6 @@ class Initial(Model):
             raise ScenarioError("[1]", f"pitch must be within ±90°, got {value[1]}")
         return value
 
-    def as_dict(self) -> dict[str, Any]:
-        """TEMPORARY: the mapping form the untyped trajectory readers still take."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.model_dump().items()}
-
 
 def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]:
     if value is None:

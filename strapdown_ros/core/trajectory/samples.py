@@ -30,7 +30,8 @@ Time: ``t`` of :meth:`SamplesTrajectory.local_truth` is seconds since the first 
 (``t0`` of the stream); knot times in the options are also seconds since the first sample.
 
 Units are SI with angles in rad. Reading samples from files (CSV, a bag's Odometry topic) is
-:mod:`strapdown_ros.inputs.samples`; the scenario keys are ``config.trajectory.SamplesSpec``.
+:mod:`strapdown_ros.inputs.samples`; the scenario keys are
+``config.trajectory.SamplesTrajectorySpec``.
 """
 
 from __future__ import annotations
