@@ -39,7 +39,7 @@ from mcap.records import (
     Message,
     Schema,
 )
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader, get_chunk_data_stream
 from numpy.typing import NDArray
 from rosbags.rosbag2 import Reader
 
@@ -283,9 +283,10 @@ class McapScan:
     """The records of one MCAP file in file order, read with the ``mcap`` library.
 
     :meth:`records` yields the Header, the Schema, Channel and Message records (those inside
-    chunks too: each chunk is broken up by ``mcap.stream_reader.breakup_chunk`` with its CRC
-    checked), Metadata and Attachment records, up to the end of the data section. Index and
-    summary records are not yielded (a writer rebuilds them).
+    chunks too: each chunk is decompressed and its CRC checked by
+    ``mcap.stream_reader.get_chunk_data_stream``, its records read by a ``StreamReader`` over
+    them), Metadata and Attachment records, up to the end of the data section. Index and summary
+    records are not yielded (a writer rebuilds them).
 
     A file cut short (a killed recorder) is read up to its last complete record. The library's
     ``StreamReader`` does not stop there by itself: it raises (``EndOfFile``, or a bare
@@ -300,7 +301,11 @@ class McapScan:
       raises first); the chunk's header fields are parsed with ``mcap.records.Chunk.read``, and
       its records, if uncompressed (the recorder's are), with a second ``StreamReader`` over the
       bytes that are there — which again yields only complete records. A compressed chunk cut
-      short cannot be decompressed: its messages are lost (noted).
+      short cannot be decompressed: its messages are lost (noted);
+    * check that each record inside a chunk spans exactly the length its prefix declares: the
+      library's ``Message.read`` accepts a corrupt length below its 22-byte header and then
+      reads on to the end of the chunk, and ``breakup_chunk`` reads a length beyond the chunk
+      as whatever bytes are left — both without an error.
 
     After :meth:`records` is exhausted: ``complete`` (the data section end was reached),
     ``end`` (offset just after the last complete record, or of the data section end),
@@ -340,14 +345,15 @@ class McapScan:
                     start, self.end = self.end, fh.tell()  # the reader stops at a record's end
                     if isinstance(rec, Chunk):
                         try:
-                            inner = breakup_chunk(rec, validate_crc=True)
+                            stream, size = get_chunk_data_stream(rec, validate_crc=True)
+                            data = stream.read(size)
                         except MCAP_READ_ERRORS as exc:
                             self.notes.append(
                                 f"chunk at byte {start} is corrupt ({exc}); its messages are "
                                 "skipped"
                             )
                             continue
-                        yield from inner
+                        yield from self._chunk_records(data, start, partial=False)
                     elif isinstance(rec, (DataEnd, Footer)):
                         self.complete = True
                         return
@@ -397,16 +403,26 @@ class McapScan:
                 "messages cannot be recovered"
             )
             return
-        inner = StreamReader(
-            io.BytesIO(chunk.data), skip_magic=True, record_size_limit=len(chunk.data)
-        )
+        yield from self._chunk_records(chunk.data, pos, partial=True)
+
+    def _chunk_records(self, data: bytes, pos: int, partial: bool) -> Iterator[McapRecord]:
+        """The Schema, Channel and Message records of a chunk's (uncompressed) records."""
+        buf, done = io.BytesIO(data), 0
         try:
-            for rec in inner.records:
+            for rec in StreamReader(buf, skip_magic=True, record_size_limit=len(data)).records:
+                (length,) = struct.unpack_from("<Q", data, done + 1)  # by hand: see the class
+                if buf.tell() - done != 9 + length:
+                    raise ValueError(f"a record of {length} bytes read as {buf.tell() - done - 9}")
+                done = buf.tell()
                 if isinstance(rec, (Schema, Channel, Message)):
-                    self.salvaged += isinstance(rec, Message)
+                    self.salvaged += partial and isinstance(rec, Message)
                     yield rec
-        except MCAP_READ_ERRORS:
-            pass  # the record the chunk was cut in
+        except MCAP_READ_ERRORS as exc:
+            if done < len(data) and not partial:  # (partial: the record the chunk was cut in)
+                self.notes.append(
+                    f"chunk at byte {pos}: corrupt record at offset {done} of its records "
+                    f"({exc}); the rest of the chunk is dropped"
+                )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -435,7 +451,8 @@ def bag_info(path: str | os.PathLike[str]) -> str:
     except BagReadError as exc:
         return "\n".join(_describe_unreadable(path, str(exc)))
     try:
-        lines = [f"bag:       {path}", "status:    complete, reads"]
+        status = "status:    complete: metadata.yaml and data files check out"
+        lines = [f"bag:       {path}", status]
         return "\n".join(lines + _metadata_lines(info, files))
     except (KeyError, TypeError, ValueError, AttributeError, OSError) as exc:
         return "\n".join(_describe_unreadable(path, f"metadata.yaml is malformed: {exc!r}"))

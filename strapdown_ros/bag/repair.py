@@ -6,17 +6,19 @@ partial record; an SQLite database may have a hot rollback journal. :func:`repai
 every message that was completely written and rebuilds the rest:
 
 * **mcap**, on the format's own library ``mcap``: the file is read with
-  :class:`~strapdown_ros.bag.reader.McapScan` (``mcap``'s ``StreamReader`` and
-  ``breakup_chunk``, up to the last complete record; the complete messages of a chunk cut short
-  are salvaged when it is uncompressed — the one thing done by hand, because the library reads
-  a chunk only whole) and written again with ``mcap.writer.Writer`` into a temporary sibling,
-  renamed over the original when everything succeeded. The writer rebuilds what a killed
-  recording lacks: chunk CRCs, message indexes, the summary section (schemas, channels,
-  statistics, chunk/metadata/attachment indexes, summary offsets) and the footer. Kept as they
-  were: the Header's profile ``ros2`` (set if the file had another one: rosbag2 readers require
-  it) and, in the library field, the original writer's name; every schema and channel (with
-  its metadata: the offered QoS profiles rosbag2 stores); every message with its payload bytes,
-  log time, publish time and sequence number, in file order; metadata and attachment records.
+  :class:`~strapdown_ros.bag.reader.McapScan` (``mcap``'s ``StreamReader``, up to the last
+  complete record; the complete messages of a chunk cut short are salvaged when it is
+  uncompressed. Done by hand there, and only because the library does not: locating the record
+  the reader stopped at, salvaging that chunk — the library reads a chunk only whole — and
+  checking the record lengths inside chunks) and written again with ``mcap.writer.Writer``
+  into a temporary sibling, renamed over the original when everything succeeded. The writer
+  rebuilds what a killed recording lacks: chunk CRCs, message indexes, the summary section
+  (schemas, channels, statistics, chunk/metadata/attachment indexes, summary offsets) and the
+  footer. Kept as they were: the Header's profile ``ros2`` (set if the file had another one:
+  rosbag2 readers require it) and, in the library field, the original writer's name; every
+  schema and channel (with its metadata: the offered QoS profiles rosbag2 stores); every
+  message with its payload bytes, log time, publish time and sequence number, in file order;
+  metadata and attachment records.
   The ``rosbag2`` metadata record (rosbag2 writes the bag's metadata into it, as YAML under
   ``serialized_metadata``, when it closes a file) is written anew with the repaired bag's
   metadata, its other keys kept. Chunks are written uncompressed.
