@@ -41,6 +41,7 @@ from strapdown_ros.config.aiding import (
     MagnetometerSpec,
     WheelOdometerSpec,
 )
+from strapdown_ros.config.base import validate_section
 from strapdown_ros.core.aiding.baro import BaroErrorModel, icao_pressure
 from strapdown_ros.core.aiding.common import mat_t_vec, mat_vec
 from strapdown_ros.core.aiding.gnss import GnssErrorModel, antenna_state, gnss_measurement
@@ -63,9 +64,11 @@ __all__ = [
     "AidingOutput",
     "AidingStream",
     "TruthRows",
+    "aiding_custom_data",
     "aiding_expected_counts",
     "aiding_spec",
     "epochs_in",
+    "error_free_spec",
     "igrf_coefficients",
 ]
 
@@ -399,10 +402,34 @@ class AidingStream:
         spec = spec if spec is not None else aiding_spec(scenario)
         if spec is None:
             raise ScenarioError("aiding", "missing: the scenario defines no aiding sensors")
+        self._setup(
+            spec,
+            scenario.start_time_ns,
+            scenario.recording.frames["reference_imu"],
+            truth_topic or scenario.recording.topics["reference_odom"],
+            warn,
+        )
+
+    @classmethod
+    def for_truth(
+        cls,
+        spec: AidingSpec,
+        start_time_ns: int,
+        body_frame: str,
+        truth_topic: str = "/reference/odom",
+        warn: Log = _ignore,
+    ) -> AidingStream:
+        """A stream without a scenario: its start time, the IMU frame and the truth topic
+        (e.g. the report re-running a bag's aiding section with its errors off)."""
+        self = cls.__new__(cls)
+        self._setup(spec, start_time_ns, body_frame, truth_topic, warn)
+        return self
+
+    def _setup(
+        self, spec: AidingSpec, t0: int, body: str, truth_topic: str, warn: Log
+    ) -> None:
         self.spec = spec
-        self.truth_topic = truth_topic or scenario.recording.topics["reference_odom"]
-        t0 = scenario.start_time_ns
-        body = scenario.recording.frames["reference_imu"]
+        self.truth_topic = truth_topic
         self.channels: list[_Channel] = []
         sensors = spec.sensors()
         if "gnss" in sensors:
@@ -474,6 +501,32 @@ class AidingStream:
             if b.topic == self.truth_topic and len(b.payloads):
                 out += self.on_payloads(list(b.payloads))
         return out
+
+
+#: Keys of a sensor that shape its messages (epochs, geometry, frames) but not its errors.
+_STRUCTURAL_KEYS = (
+    "enabled", "rate_hz", "lever_arm_m", "latency_s", "outages", "status", "constellations",
+    "frame_id", "model", "decimal_year", "nhc_sigma_mps",
+)  # fmt: skip
+
+
+def aiding_custom_data(spec: AidingSpec | None) -> dict[str, str]:
+    """Bag ``custom_data`` describing the aiding section: ``aiding`` = the section as JSON
+    (the values the model resolved, presets filled in), read back by the report."""
+    if spec is None:
+        return {}
+    return {"aiding": spec.model_dump_json(exclude_none=True)}
+
+
+def error_free_spec(document: dict[str, Any]) -> AidingSpec:
+    """The aiding section ``document`` with every error key removed (the truth of its sensors:
+    same epochs, lever arms, outages, latency and frames)."""
+    stripped = {
+        sensor: {k: v for k, v in body.items() if k in _STRUCTURAL_KEYS}
+        for sensor, body in document.items()
+        if isinstance(body, dict)
+    }
+    return validate_section(AidingSpec, stripped, "aiding")  # type: ignore[return-value]
 
 
 def epochs_in(start_ns: int, stop_ns: int, period_ns: int) -> int:
