@@ -1013,7 +1013,9 @@ def map_odometry_fields(
     """
     c_map_e = np.asarray(c_map_e, dtype=np.float64)
     c = c_map_e.T  # C_E^map
-    pos = (np.asarray(odom.position, dtype=np.float64) - np.asarray(r0_e)) @ c_map_e
+    d = np.asarray(odom.position, dtype=np.float64) - np.asarray(r0_e)
+    # row-wise C^T d, elementwise (no BLAS: same bits for any number of rows)
+    pos = d[:, 0:1] * c_map_e[0] + d[:, 1:2] * c_map_e[1] + d[:, 2:3] * c_map_e[2]
     c_flu_e = dcm_from_quat_ros(odom.orientation)
     cov = np.asarray(odom.pose_covariance)
     if cov.shape[0] and cov.strides[0] == 0 and (not cov[0].any() or cov[0, 0] == -1.0):

@@ -16,9 +16,23 @@ from numpy.typing import ArrayLike, NDArray
 from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef
 from strapdown_ros.core.rotations import C_FRD_TO_FLU, C_NED_TO_ENU
 
-__all__ = ["Datum", "MapPose", "body_in_map", "sensor_in_body"]
+__all__ = ["Datum", "MapPose", "body_in_map", "row_times", "sensor_in_body"]
 
 F64 = NDArray[np.float64]
+
+#: FRD ↔ FLU sign flips, applied elementwise.
+_FLU = np.array([1.0, -1.0, -1.0])
+
+
+def row_times(d: ArrayLike, c: ArrayLike) -> F64:
+    """Row vectors ``d`` (..., 3) times the matrix ``c`` (3, 3): ``out_j = Σ_k d_k c_kj``.
+
+    Written elementwise (no BLAS): each row's result is the same bits whatever the number of
+    rows, so chunked streams give identical messages.
+    """
+    d = np.asarray(d, dtype=np.float64)
+    c = np.asarray(c, dtype=np.float64)
+    return d[..., 0:1] * c[0] + d[..., 1:2] * c[1] + d[..., 2:3] * c[2]
 
 
 @dataclass(frozen=True)
@@ -49,11 +63,11 @@ class Datum:
     def to_map(self, r_e: ArrayLike) -> F64:
         """ENU position relative to the datum of ECEF positions ``r_e`` (..., 3), m."""
         d = np.asarray(r_e, dtype=np.float64) - self.r0_e
-        return d @ self.c_map_e  # (C_ENU^E)^T d, row-wise
+        return row_times(d, self.c_map_e)  # (C_ENU^E)^T d, row-wise
 
     def to_earth(self, p_map: ArrayLike) -> F64:
         """ECEF position of ``map`` positions ``p_map`` (..., 3), m (inverse of :meth:`to_map`)."""
-        return self.r0_e + np.asarray(p_map, dtype=np.float64) @ self.c_map_e.T
+        return self.r0_e + row_times(p_map, self.c_map_e.T)
 
 
 @dataclass(frozen=True)
@@ -89,5 +103,6 @@ def sensor_in_body(
     """
     c = np.asarray(c_sensor_body_frd, dtype=np.float64)
     s = np.asarray(displacement_frd, dtype=np.float64)
-    p = np.asarray(lever_arm_frd, dtype=np.float64) + np.einsum("...ij,...j->...i", c, s)
-    return p @ C_FRD_TO_FLU, C_FRD_TO_FLU @ c @ C_FRD_TO_FLU
+    cs = c[..., 0] * s[..., 0:1] + c[..., 1] * s[..., 1:2] + c[..., 2] * s[..., 2:3]
+    p = np.asarray(lever_arm_frd, dtype=np.float64) + cs
+    return p * _FLU, c * _FLU[:, None] * _FLU  # D C D, elementwise

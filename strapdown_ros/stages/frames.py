@@ -12,13 +12,15 @@ Imu topic. Every output message depends on one input message only (and the scena
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from rosbags.interfaces import QosDurability
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch, batch
+from strapdown_ros.bag.batches import Batch, batch, merge_order
+from strapdown_ros.bag.writer import DEFAULT_QOS
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.tf import tf_spec
 from strapdown_ros.core.frames import Datum, sensor_in_body
@@ -36,12 +38,20 @@ from strapdown_ros.messages import (
 __all__ = [
     "DERIVED_TOPICS",
     "EXTRA_FRAMES",
-    "TF_TOPICS",
-    "FramesStage",
     "IMU_KEYS",
     "ODOM_KEYS",
+    "STATIC_QOS",
+    "TF_TOPICS",
+    "FramesStage",
+    "derived_counts",
+    "derived_topics",
     "scenario_datum",
 ]
+
+#: Offered QoS stored for ``/tf_static``: a latched (transient local) publisher, as
+#: ``ros2 bag record`` stores tf2_ros' static broadcaster; ``ros2 bag play`` then replays it
+#: latched. Every other topic has :data:`strapdown_ros.bag.writer.DEFAULT_QOS`.
+STATIC_QOS = DEFAULT_QOS._replace(durability=QosDurability.TRANSIENT_LOCAL)
 
 #: recording.topics key of each ECEF Odometry topic and of its map-frame twin.
 ODOM_KEYS = ("reference_odom", "variation_odom", "variation_reference_odom", "navigator_odom")
@@ -93,6 +103,75 @@ def scenario_datum(scenario: Scenario) -> Datum:
         truth = trajectory.local_truth(np.zeros(1))
         return Datum.at(float(truth.lat[0]), float(truth.lon[0]), float(truth.alt[0]))
     return Datum.at(np.radians(lat), np.radians(lon), alt)
+
+
+def _source_topics(scenario: Scenario, keys: Iterable[str]) -> dict[str, str]:
+    return {_topic(scenario, k): k for k in keys}
+
+
+def derived_topics(scenario: Scenario, produced: Mapping[str, str]) -> dict[str, str]:
+    """The topics (name → message type) :class:`FramesStage` adds to the scenario's
+    ``produced`` topics (``topics.produced_topics``), in the order ``generate`` creates them:
+    ``/tf_static``, ``/tf``, then each source topic's map odometry / increments."""
+    spec = tf_spec(scenario)
+    increments = bool(getattr(scenario.recording, "increments", False))
+    odom = _source_topics(scenario, ODOM_KEYS)
+    imu = _source_topics(scenario, IMU_KEYS)
+    out: dict[str, str] = {}
+    if spec.enabled:
+        out[_topic(scenario, "tf_static")] = cdr.TF_MESSAGE
+        out[_topic(scenario, "tf")] = cdr.TF_MESSAGE
+    for topic in produced:
+        if topic in odom and spec.map_odometry:
+            out[_topic(scenario, f"{odom[topic]}_map")] = cdr.ODOMETRY
+        if topic in imu and increments:
+            out[_topic(scenario, f"{imu[topic]}_dv")] = cdr.VECTOR3_STAMPED
+            out[_topic(scenario, f"{imu[topic]}_dq")] = cdr.QUATERNION_STAMPED
+    return out
+
+
+def _every(count: int, ratio: int) -> int:
+    """Messages kept of ``count`` consecutive ones (the first kept) when keeping 1 in ratio."""
+    return 0 if count <= 0 else (count - 1) // ratio + 1
+
+
+def derived_counts(
+    scenario: Scenario, counts: Mapping[str, int], *, variation_static: bool = False
+) -> dict[str, int]:
+    """Message count of each derived topic from the counts of the source topics (by
+    ``recording.topics`` key, e.g. ``{"reference_odom": 120001, ...}``; the keys a scenario
+    does not produce are absent). ``variation_static``: ``base_link → variation_imu`` goes to
+    ``/tf_static`` (constant offsets) instead of ``/tf``."""
+    spec = tf_spec(scenario)
+    increments = bool(getattr(scenario.recording, "increments", False))
+    out: dict[str, int] = {}
+    if spec.enabled:
+        body = 1
+        if spec.body_rate_hz is not None:
+            body = round(1e9 / spec.body_rate_hz) // scenario.period_ns
+        n = _every(counts.get("reference_odom", 0), body)
+        if not variation_static:
+            n += _every(counts.get("variation_odom", 0), body)
+        nav = counts.get("navigator_odom", 0)
+        if nav:
+            ratio = 1
+            if spec.navigator_rate_hz is not None:
+                from strapdown_ros.config.navigator import navigator_spec
+
+                nav_spec = navigator_spec(scenario)
+                assert nav_spec is not None
+                ratio = round(1e9 / spec.navigator_rate_hz) // (scenario.period_ns * nav_spec.n)
+            n += _every(nav, ratio)
+        out[_topic(scenario, "tf_static")] = 1
+        out[_topic(scenario, "tf")] = n
+    for key in ODOM_KEYS:
+        if key in counts and spec.map_odometry:
+            out[_topic(scenario, f"{key}_map")] = counts[key]
+    for key in IMU_KEYS:
+        if key in counts and increments:
+            out[_topic(scenario, f"{key}_dv")] = counts[key]
+            out[_topic(scenario, f"{key}_dq")] = counts[key]
+    return out
 
 
 @dataclass(frozen=True)
@@ -174,22 +253,8 @@ class FramesStage:
         return _topic(self.scenario, "tf_static")
 
     def topics(self, produced: Mapping[str, str]) -> dict[str, str]:
-        """The topics (name → type) this stage adds for the scenario's ``produced`` topics
-        (``topics.produced_topics``: name → type), in the order it writes them."""
-        out: dict[str, str] = {}
-        s = self.settings
-        if s.tf:
-            out[self.tf_static_topic] = cdr.TF_MESSAGE
-            out[self.tf_topic] = cdr.TF_MESSAGE
-        for topic in produced:
-            key = self.odom_topics.get(topic)
-            if key is not None and s.map_odometry:
-                out[_topic(self.scenario, f"{key}_map")] = cdr.ODOMETRY
-            key = self.imu_topics.get(topic)
-            if key is not None and s.increments:
-                out[_topic(self.scenario, f"{key}_dv")] = cdr.VECTOR3_STAMPED
-                out[_topic(self.scenario, f"{key}_dq")] = cdr.QUATERNION_STAMPED
-        return out
+        """:func:`derived_topics` of this stage's scenario."""
+        return derived_topics(self.scenario, produced)
 
     # -- offsets of the variation ----------------------------------------------------------
 
@@ -328,3 +393,28 @@ class FramesStage:
                 out.append(batch(_topic(self.scenario, f"{key}_dv"), dv))
                 out.append(batch(_topic(self.scenario, f"{key}_dq"), dq))
         return out
+
+    def derive_items(self, items: list[tuple[str, int, bytes]]) -> list[tuple[str, int, bytes]]:
+        """The live nodes' path: derived messages ``(topic, stamp_ns, payload)`` of a node's
+        serialized outputs, in stamp order (same payloads as :meth:`feed_batches`)."""
+        by_topic: dict[str, tuple[list[int], list[bytes]]] = {}
+        for topic, stamp, payload in items:
+            if topic in self.odom_topics or topic in self.imu_topics:
+                stamps, payloads = by_topic.setdefault(topic, ([], []))
+                stamps.append(stamp)
+                payloads.append(payload)
+        if not by_topic:
+            return []
+        types = {
+            **dict.fromkeys(self.odom_topics, cdr.ODOMETRY),
+            **dict.fromkeys(self.imu_topics, cdr.IMU),
+        }
+        batches = [
+            Batch(t, types[t], np.asarray(st, dtype=np.int64), pl)
+            for t, (st, pl) in by_topic.items()
+        ]
+        derived = self.feed_batches(batches)
+        return [
+            (derived[k].topic, stamp, derived[k].payloads[i])
+            for k, i, stamp in merge_order(derived)
+        ]
