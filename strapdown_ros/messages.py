@@ -67,6 +67,8 @@ __all__ = [
     "DEFAULT_BODY_FRAME",
     "EARTH_FRAME",
     "SERVICE_GPS",
+    "SERVICE_UNKNOWN",
+    "STATUS_NO_FIX",
     "STATUS_FIX",
     "ClockFields",
     "EarthState",
@@ -116,6 +118,9 @@ COVARIANCE_NOT_PROVIDED = "not_provided"
 # sensor_msgs/NavSatStatus and NavSatFix constants (values of the message definitions).
 STATUS_FIX = 0
 SERVICE_GPS = 1
+#: An inertial-only position (the navigator's): not a GNSS fix (docs/interface.md §4).
+STATUS_NO_FIX = -1
+SERVICE_UNKNOWN = 0
 COVARIANCE_TYPE_UNKNOWN = 0
 COVARIANCE_TYPE_APPROXIMATED = 1
 COVARIANCE_TYPE_DIAGONAL_KNOWN = 2
