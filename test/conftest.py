@@ -7,6 +7,9 @@ session and a developer's running nodes) never see each other's topics.  The var
 written into ``os.environ`` in :func:`pytest_configure`, before any test module (and so any
 ``rclpy``) is imported, and child processes inherit them.  Set ``STRAPDOWN_TEST_DOMAIN_ID``
 to choose the domain explicitly.
+
+Test tiers: the ``dds`` marker is set automatically and the ROS-free tier is guarded by the
+plugin ``test/tiers.py``, registered here.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import os
 
 import pytest
+import tiers
 
 DOMAIN_ID_ENV = "STRAPDOWN_TEST_DOMAIN_ID"
 #: Domain ids 1..101 keep Fast DDS' ports (7400 + 250 * id + ...) below Linux' ephemeral range.
@@ -46,6 +50,8 @@ def ros_isolation_env(domain_id: int) -> dict[str, str]:
 
 def pytest_configure(config: pytest.Config) -> None:
     """Export the session's DDS isolation variables before any test module is imported."""
+    if not config.pluginmanager.is_registered(tiers):
+        config.pluginmanager.register(tiers, "strapdown-tiers")
     if not hasattr(config, "workerinput"):  # pytest-xdist workers inherit the controller's
         os.environ.update(ros_isolation_env(session_domain_id()))
     # Jazzy warns when the deprecated variable is set next to the new one; it is superseded.

@@ -1,15 +1,23 @@
-"""Layering rule: ``strapdown_ros.core`` is ROS-free (numpy/scipy only).
+"""Layering rules of ``strapdown_ros.core``: ROS-free (numpy/scipy only), and it reads no
+configuration: no ``from_config``, no ``Mapping``, no yaml/pydantic, no import of the scenario
+model, the stages, the nodes or the bag code (issue 13: core takes typed objects or plain
+numbers and arrays; the model builds them outside core).
 
-Checked in fresh interpreters so that nothing this test session imported leaks in.
+The ROS checks run in fresh interpreters, so that nothing this session imported leaks in; the
+configuration checks read the sources (``test/import_graph.py``: every import, function-level
+and ``TYPE_CHECKING`` ones included).
 """
 
 from __future__ import annotations
 
+import ast
 import json
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
+
+import import_graph
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 #: Modules the core must neither need nor load.
@@ -66,3 +74,107 @@ def test_core_import_loads_no_ros_or_plotting_module():
     """)
     assert result["after_package"] == []
     assert result["after_all"] == []
+
+
+# ---------------------------------------------------------------------------------------------
+# core reads no configuration mapping
+# ---------------------------------------------------------------------------------------------
+
+CORE = REPO_ROOT / "strapdown_ros" / "core"
+#: Third-party packages core may import (anything else but the standard library is refused).
+CORE_MAY_IMPORT = ("numpy", "scipy", "numba")
+#: Named in the failure message when imported by core.
+CONFIG_MODULES = ("yaml", "pydantic", "strapdown_ros.config", "strapdown_ros.stages",
+                  "strapdown_ros.nodes", "strapdown_ros.bag")  # fmt: skip
+MAPPING_SOURCES = ("typing", "collections.abc", "collections", "typing_extensions")
+
+
+def _within(name: str, prefixes) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in prefixes)
+
+
+def core_violations(package_dir: Path, package: str) -> list[str]:
+    """Every way a module under ``package_dir`` (the core) reads configuration, as text."""
+    modules = import_graph.package_modules(package_dir, package)
+    known = frozenset(modules)
+    found = []
+    root = package_dir.parents[package.count(".")]
+    for name, path in sorted(modules.items()):
+        rel = path.relative_to(root)
+        for imp in import_graph.imports_of(path, name, known):
+            at = f"{rel}:{imp.line}"
+            target = imp.target
+            if _within(target, CONFIG_MODULES):
+                found.append(f"{at}: imports {target} ({imp.statement})")
+            elif target.split(".")[0] == package.split(".")[0] and not _within(target, [package]):
+                found.append(f"{at}: imports {target} outside the core ({imp.statement})")
+            elif target.split(".")[0] in sys.stdlib_module_names or target == "__future__":
+                if target in MAPPING_SOURCES and any("Mapping" in n for n in imp.names):
+                    found.append(f"{at}: imports a Mapping type ({imp.statement})")
+            elif not _within(target, (package, *CORE_MAY_IMPORT)):
+                found.append(f"{at}: imports {target}, not numpy/scipy/numba ({imp.statement})")
+        for node in ast.walk(import_graph.parse(path)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and (
+                node.name == "from_config"
+            ):
+                found.append(f"{rel}:{node.lineno}: defines from_config()")
+            elif isinstance(node, ast.Attribute) and node.attr == "from_config":
+                found.append(f"{rel}:{node.lineno}: uses .from_config")
+            elif isinstance(node, ast.Name) and node.id == "from_config":
+                found.append(f"{rel}:{node.lineno}: uses from_config")
+            elif isinstance(node, ast.Attribute) and "Mapping" in node.attr:
+                found.append(f"{rel}:{node.lineno}: uses {ast.unparse(node)}")
+    return found
+
+
+def test_core_reads_no_configuration() -> None:
+    found = core_violations(CORE, "strapdown_ros.core")
+    assert not found, f"{len(found)} configuration reader(s) in strapdown_ros/core:\n" + (
+        "\n".join(f"  {f}" for f in found)
+    )
+
+
+def test_core_check_finds_every_form(tmp_path: Path) -> None:
+    """The checker itself: each forbidden form is reported, allowed imports are not."""
+    core = tmp_path / "pkg" / "core"
+    core.mkdir(parents=True)
+    (tmp_path / "pkg" / "__init__.py").write_text("")
+    (core / "__init__.py").write_text("from .ok import f\n")
+    (core / "ok.py").write_text(
+        "import math\nfrom collections.abc import Sequence\nimport numpy as np\n"
+        "from scipy.signal import lfilter\nfrom . import sub\n"
+        "def f(x: Sequence[float]) -> float:\n    return math.fsum(x)\n"
+    )
+    (core / "sub.py").write_text("X = 1\n")
+    (core / "bad.py").write_text(
+        "from collections.abc import Mapping\n"
+        "import typing\n"
+        "def g(c: typing.Mapping) -> None:\n"
+        "    import yaml\n"
+        "    from pydantic import BaseModel\n"
+        "    from ..config import Scenario\n"
+        "    from pkg.stages import variation\n"
+        "    from pkg.topics import DEFAULT\n"
+        "    import requests\n"
+        "class T:\n"
+        "    @classmethod\n"
+        "    def from_config(cls, d):\n"
+        "        return cls.from_config(d)\n"
+    )
+    found = core_violations(core, "pkg.core")
+    text = "\n".join(found)
+    assert len(found) == 10, text
+    for expected in (
+        "bad.py:1: imports a Mapping type",
+        "bad.py:3: uses typing.Mapping",
+        "bad.py:4: imports yaml",
+        "bad.py:5: imports pydantic",
+        "bad.py:6: imports pkg.config outside the core",
+        "bad.py:7: imports pkg.stages outside the core",
+        "bad.py:8: imports pkg.topics outside the core",
+        "bad.py:9: imports requests, not numpy/scipy/numba",
+        "bad.py:12: defines from_config()",
+        "bad.py:13: uses .from_config",
+    ):
+        assert expected in text, (expected, text)
+    assert "ok.py" not in text
