@@ -418,3 +418,27 @@ class FramesStage:
             (derived[k].topic, stamp, derived[k].payloads[i])
             for k, i, stamp in merge_order(derived)
         ]
+
+
+class FramedSolver:
+    """A node's solver whose outputs come with their derived messages (:class:`FramesStage`).
+
+    ``on_batch(items)`` returns the solver's serialized outputs followed by the derived
+    messages of those outputs whose topic is in ``topics`` (the ones the node publishes: TF is
+    left out where tf2_msgs is not available). Everything else is the wrapped solver's.
+    """
+
+    def __init__(self, solver: object, frames: FramesStage, topics: Iterable[str]) -> None:
+        self.solver = solver
+        self.frames = frames
+        self.topics = set(topics)
+
+    def on_batch(self, items: list) -> list[tuple[str, int, bytes]]:
+        out = self.solver.on_batch(items)  # type: ignore[attr-defined]
+        if not out or not self.topics:
+            return out
+        derived = self.frames.derive_items(out)
+        return out + [item for item in derived if item[0] in self.topics]
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.solver, name)
