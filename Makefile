@@ -2,6 +2,7 @@
 #
 #   make run    main job: the live pipeline on the default scenario into out/default + report
 #   make test   the test command (ruff, then pytest); what CI runs (.ci/run)
+#   make test-fast  ruff, then the tests that start no ROS process and are not slow
 #
 # Everything runs in .venv, created from pinned requirements by `make setup` (incremental).
 
@@ -30,13 +31,14 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help setup test lint bench run generate clean distclean
+.PHONY: help setup test test-fast lint bench run generate clean distclean
 
 help:
 	@echo "make setup      create/update .venv (pinned deps, editable package, ament prefix)"
 	@echo "make run        live pipeline on the default scenario into out/default, then its report"
 	@echo "make generate   the same scenario offline into out/default_offline, then its report"
-	@echo "make test       ruff check + pytest (the CI command)"
+	@echo "make test       ruff check + pytest, every test (the CI command)"
+	@echo "make test-fast  ruff check + pytest -m \"not dds and not slow\" (no ROS process, rclpy blocked)"
 	@echo "make lint       ruff check only"
 	@echo "make bench      install the bench extras (pyins) and run every bench/bench_*.py"
 	@echo "make clean      remove outputs and caches; make distclean also removes .venv"
@@ -71,6 +73,14 @@ lint: setup
 test: setup
 	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
 	$(VPY) -m pytest $(PYTEST_ARGS) || exit $$?; \
+	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
+
+# The fast tier: no test that starts ROS processes (marker dds, set automatically by
+# test/tiers.py; rclpy is then blocked in pytest and its children) and none marked slow.
+FAST_MARKERS := not dds and not slow
+test-fast: setup
+	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
+	$(VPY) -m pytest -m "$(FAST_MARKERS)" $(PYTEST_ARGS) || exit $$?; \
 	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
 
 # Benchmark-only dependencies (pyins for bench/bench_peers.py), pinned in requirements/bench.txt
