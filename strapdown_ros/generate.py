@@ -30,7 +30,7 @@ from strapdown_ros.stages.reference import (
     output_cycles,
     reference_batch_chunks,
 )
-from strapdown_ros.stages.variation import _VariationStreamer, variation_settings
+from strapdown_ros.stages.variation import VariationStage
 
 __all__ = [
     "DatasetSummary",
@@ -107,8 +107,8 @@ def bag_custom_data(scenario: Scenario) -> dict[str, str]:
         "gravity_model": str(scenario.gravity_model),
     }
     if scenario.variation is not None:
-        method, gravity = variation_settings(scenario)
-        data["variation.method"], data["variation.gravity"] = str(method), gravity
+        spec = scenario.variation
+        data["variation.method"], data["variation.gravity"] = str(spec.method), spec.gravity
     nav = navigator_spec(scenario)
     if nav is not None:
         data["navigator.algorithm"], data["navigator.mode"] = nav.algorithm, str(nav.mode)
@@ -223,14 +223,14 @@ def generate_dataset(
     measured = generate_measured_stream(scenario)  # validates imu_errors' topics first
 
     def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
-        streamer = None if scenario.variation is None else _VariationStreamer(scenario, total)
+        streamer = None if scenario.variation is None else VariationStage.offline(scenario, total)
         navigator = None
         if scenario.navigator is not None:
             navigator = NavigationStage.for_scenario(scenario, period_ns=scenario.period_ns)
         for piece, batches in reference_batch_chunks(scenario, trajectory):
             res = {"reference": stream_residuals(piece)}
             if streamer is not None:
-                batches = batches + streamer.feed(batches, res)
+                batches = batches + streamer.feed_batches(batches, res)
             if measured is not None:  # issue 7: before the navigator, which may consume it
                 batches = batches + measured.feed_batches(batches)
             nav_errors: dict[str, float] = {}

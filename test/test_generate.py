@@ -303,7 +303,7 @@ VARIATIONS = {
 
 @pytest.mark.parametrize("kind", sorted(VARIATIONS))
 def test_variation_streams_read_back_obey_exactness_and_constraints(tmp_path, kind):
-    from strapdown_ros.core.offsets import offset_history
+    from strapdown_ros.config.variation import VariationSpec
     from strapdown_ros.core.rotations import rotation_angle
     from strapdown_ros.core.variation import OffsetArrays, variation_constraints
 
@@ -320,7 +320,9 @@ def test_variation_streams_read_back_obey_exactness_and_constraints(tmp_path, ki
         assert res.within_spec(), (kind, res.max_attitude, res.max_velocity, res.max_position)
     assert variation.cycles == reference.cycles - 2
     # constraints (5) every cycle, (6)-(7) and (10) at even cycles, from what the bag holds
-    h = offset_history(VARIATIONS[kind], reference.period, reference.cycles)
+    h = VariationSpec.model_validate(VARIATIONS[kind]).offset_model().history(
+        reference.period, reference.cycles
+    )
     con = variation_constraints(
         reference, OffsetArrays(h.lever_arm, h.displacement, h.c_bvar_bref), variation.cycles
     )
@@ -353,9 +355,9 @@ def test_streamed_variation_equals_one_vectorized_run(monkeypatch):
     ref_batches, var_batches = [], []
     for _, batches in reference.reference_batch_chunks(scenario):
         ref_batches.append(batches)
-    streamer = variation._VariationStreamer(scenario, 4000)
+    streamer = variation.VariationStage.offline(scenario, 4000)
     for batches in ref_batches:
-        var_batches.append(streamer.feed(batches, {}))
+        var_batches.append(streamer.feed_batches(batches, {}))
     merged = [
         variation.Batch(g[0].topic, g[0].msgtype, np.concatenate([b.stamps_ns for b in g]),
                       [p for b in g for p in b.payloads])

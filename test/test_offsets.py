@@ -1,15 +1,17 @@
-"""Offset history of a variation (Savage 2020 eqs. (5)-(7) inputs) from the scenario keys."""
+"""Offset history of a variation (Savage 2020 eqs. (5)-(7) inputs) from the scenario keys.
+
+The keys are the typed ``variation`` section (:class:`~strapdown_ros.config.variation.
+VariationSpec`); the history is evaluated by the ROS-free :class:`~strapdown_ros.core.offsets.
+OffsetModel` it builds.
+"""
 
 import numpy as np
 import pytest
 
-from strapdown_ros.core.offsets import (
-    VARIATION_KEYS,
-    OffsetModel,
-    offset_history,
-    passthrough_settings,
-    validate_offsets,
-)
+from strapdown_ros.config import ScenarioError, parse_scenario
+from strapdown_ros.config.base import validate_section
+from strapdown_ros.config.variation import DEFAULT_WINDOW, VariationSpec
+from strapdown_ros.core.offsets import OffsetModel, SweepScan
 from strapdown_ros.core.rotations import (
     dcm_from_euler,
     dcm_from_rotvec,
@@ -22,8 +24,19 @@ from strapdown_ros.core.scan_filter import attitude_offset_increments
 
 T = 0.005
 NONE = {"kind": "none"}
+SCENARIO = {"rate_hz": 200, "initial": {"latitude_deg": 45.0, "longitude_deg": 7.0},
+            "trajectory": {"kind": "segments", "segments": [{"duration_s": 1.0}]}}
 RASTER = {"kind": "raster", "amplitude_deg": 30, "rate_dps": 25, "elevation_step_deg": 4,
           "rows": 4}  # fmt: skip
+
+
+def spec(cfg) -> VariationSpec:
+    """The validated section (errors as ScenarioError named ``variation.…``)."""
+    return validate_section(VariationSpec, cfg, "variation")
+
+
+def offset_history(cfg, period, cycles):
+    return spec(cfg).offset_model().history(period, cycles)
 
 
 def az_el(c):
@@ -183,32 +196,44 @@ def test_random_bending_sigma_bandwidth_and_seed():
         assert low == pytest.approx(high, rel=0.2)  # fills the band evenly
     # seed: same bits, different seed -> different motion
     np.testing.assert_array_equal(offset_history(cfg, period, 1000).lever_arm, a[:1001])
-    model = OffsetModel.from_config(cfg)
+    model = spec(cfg).offset_model()
     np.testing.assert_array_equal(model.lever_arm_at(np.arange(1001) * period), a[:1001])
     cfg["bending"]["random"]["seed"] = 8
     assert not np.array_equal(offset_history(cfg, period, 1000).lever_arm, a[:1001])
 
 
-def test_passthrough_keys_are_accepted_untouched():
+def test_settings_and_passthrough_keys():
     cfg = {"method": 1, "gravity": "first_order", "topics": {"imu": "/x"}, "lever_arm_m": [1, 0, 0]}
-    validate_offsets(cfg)
-    assert passthrough_settings(cfg) == {
-        "method": 1,
-        "gravity": "first_order",
-        "topics": {"imu": "/x"},
-    }
-    validate_offsets({"method": "anything"})  # interpreted (and checked) elsewhere
-    assert OffsetModel.from_config(cfg).passthrough["topics"] == {"imu": "/x"}
+    s = spec(cfg)
+    assert (s.method, s.gravity, s.topics) == (1, "first_order", {"imu": "/x"})
+    d = spec({})
+    assert (d.method, d.gravity, d.topics, d.lag_compensation) == (2, "full", None, False)
+    assert d.filter.kind == "walking_window" and d.filter.window == DEFAULT_WINDOW == 21
+    assert d.scan is None and d.bending is None
+    # null means the default, as it always did; a filter without kind is a walking window
+    n = spec({"scan": None, "filter": {"window": 5}, "lever_arm_m": None})
+    assert n.scan is None and n.filter.kind == "walking_window" and n.filter.window == 5
+    r = spec({"scan": RASTER})
+    assert r.scan.elevation_rate_dps is None and r.scan.start_s == 0.0
+    b = spec({"bending": {"random": {"sigma_m": [1, 1, 1], "bandwidth_hz": 2}}})
+    assert (b.bending.random.seed, b.bending.random.components) == (0, 64)
 
 
 @pytest.mark.parametrize(
     ("cfg", "message"),
     [
         ([1, 2], "variation: must be a mapping"),
-        ({"lever": [1, 2, 3]}, "variation.lever: unknown key; expected one of: lever_arm_m"),
+        ({"method": 3}, "variation.method: must be 1 or 2, got 3"),
+        ({"method": True}, "variation.method: must be 1 or 2, got True"),
+        ({"gravity": "flat"}, "variation.gravity: must be one of"),
+        ({"lever": [1, 2, 3]},
+         "variation.lever: unknown key (did you mean 'lever_arm_m'?); expected one of: "
+         "lever_arm_m"),
         ({"lever_arm_m": [1, 2]}, "variation.lever_arm_m: must be a list of 3"),
-        ({"displacement_m": [1, 2, "x"]}, "variation.displacement_m: must be a list of 3"),
-        ({"mounting_rph_deg": [0, float("nan"), 0]}, "variation.mounting_rph_deg: must be"),
+        ({"displacement_m": [1, 2, "x"]},
+         "variation.displacement_m[2]: must be a number, got str 'x'"),
+        ({"mounting_rph_deg": [0, float("nan"), 0]},
+         "variation.mounting_rph_deg[1]: must be finite, got nan"),
         ({"lag_compensation": 1}, "variation.lag_compensation: must be true or false"),
         ({"bending": {"wobble": 1}}, "variation.bending.wobble: unknown key"),
         ({"bending": {"sinusoids": {"amplitude_m": [1, 1, 1]}}},
@@ -216,28 +241,29 @@ def test_passthrough_keys_are_accepted_untouched():
         ({"bending": {"sinusoids": [{"amplitude_m": [1, 1, 1]}]}},
          "variation.bending.sinusoids[0].frequency_hz: is required"),
         ({"bending": {"sinusoids": [{"amplitude_m": [1, 1, 1], "frequency_hz": 0}]}},
-         "variation.bending.sinusoids[0].frequency_hz: must be > 0, got 0"),
+         "variation.bending.sinusoids[0].frequency_hz: must be > 0.0, got 0"),
         ({"bending": {"random": {"sigma_m": [1, 1, 1], "bandwidth_hz": -1}}},
-         "variation.bending.random.bandwidth_hz: must be > 0, got -1"),
+         "variation.bending.random.bandwidth_hz: must be > 0.0, got -1"),
         ({"bending": {"random": {"sigma_m": [1, -1, 1], "bandwidth_hz": 1}}},
          "variation.bending.random.sigma_m: must be >= 0"),
         ({"bending": {"random": {"sigma_m": [1, 1, 1], "bandwidth_hz": 1, "seed": 1.5}}},
-         "variation.bending.random.seed: must be an integer >= 0"),
+         "variation.bending.random.seed: must be an integer, got float 1.5"),
         ({"bending": {"random": {"sigma_m": [1, 1, 1], "bandwidth_hz": 1, "components": 0}}},
-         "variation.bending.random.components: must be an integer >= 1"),
-        ({"scan": {"kind": "spiral"}}, "variation.scan.kind: must be one of segments, sweep"),
-        ({"scan": {"amplitude_deg": 3}}, "variation.scan.kind: must be one of"),
+         "variation.bending.random.components: must be >= 1, got 0"),
+        ({"scan": {"kind": "spiral"}},
+         "variation.scan: kind must be one of: 'segments', 'sweep', 'raster'; got 'spiral'"),
+        ({"scan": {"amplitude_deg": 3}}, "variation.scan: is missing its 'kind'"),
         ({"scan": "sweep"}, "variation.scan: must be a mapping"),
         ({"scan": {"kind": "sweep", "amplitude_deg": 10}}, "variation.scan.rate_dps: is required"),
         ({"scan": {"kind": "sweep", "amplitude_deg": 10, "rate_dps": -5}},
-         "variation.scan.rate_dps: must be > 0, got -5"),
+         "variation.scan.rate_dps: must be > 0.0, got -5"),
         ({"scan": {"kind": "sweep", "amplitude_deg": 10, "rate_dps": 5, "axis": [0, 0, 0]}},
          "variation.scan.axis: must not be zero"),
         ({"scan": {"kind": "sweep", "amplitude_deg": 10, "rate_dps": 5, "rows": 2}},
          "variation.scan.rows: unknown key; expected one of: kind, axis"),
         ({"scan": {"kind": "sweep", "amplitude_deg": 10, "rate_dps": 5, "start_s": -1}},
          "variation.scan.start_s: must be >= 0"),
-        ({"scan": RASTER | {"rows": 0}}, "variation.scan.rows: must be an integer >= 1"),
+        ({"scan": RASTER | {"rows": 0}}, "variation.scan.rows: must be >= 1, got 0"),
         ({"scan": {k: v for k, v in RASTER.items() if k != "rows"}},
          "variation.scan.rows: is required"),
         ({"scan": RASTER | {"elevation_rate_dps": 0}},
@@ -247,16 +273,19 @@ def test_passthrough_keys_are_accepted_untouched():
          "variation.scan.segments: must be a non-empty list"),
         ({"scan": {"kind": "segments", "segments": [{"duration_s": 0, "rate_dps": [1, 0, 0]}]}},
          "variation.scan.segments[0].duration_s: must be > 0"),
-        ({"scan": {"kind": "segments", "segments": [{"duration_s": 1, "rate": [1, 0, 0]}]}},
-         "variation.scan.segments[0].rate: unknown key; expected one of: duration_s, rate_dps"),
-        ({"filter": {"kind": "kalman"}}, "variation.filter.kind: must be one of walking_window"),
+        ({"scan": {"kind": "segments", "segments": [
+            {"duration_s": 1, "rate_dps": [1, 0, 0], "rate": 1}]}},
+         "variation.scan.segments[0].rate: unknown key (did you mean 'rate_dps'?); "
+         "expected one of: duration_s, rate_dps"),
+        ({"filter": {"kind": "kalman"}},
+         "variation.filter: kind must be one of: 'walking_window', 'general', 'none'"),
         ({"filter": {"kind": "walking_window", "window": 0}},
-         "variation.filter.window: must be an integer >= 1, got 0"),
+         "variation.filter.window: must be >= 1, got 0"),
         ({"filter": {"kind": "walking_window", "window": 2.5}}, "variation.filter.window: must"),
         ({"filter": {"kind": "none", "window": 3}}, "variation.filter.window: unknown key"),
         ({"filter": {"kind": "general"}}, "variation.filter.a: is required"),
         ({"filter": {"kind": "general", "a": [0.5, "x"]}},
-         "variation.filter.a[1]: must be a finite number"),
+         "variation.filter.a[1]: must be a number, got str 'x'"),
         ({"filter": {"kind": "general", "a": [0.5]}},
          r"variation.filter: coefficients a=[0.5], b=[] violate Savage eq. (D-3)"),
         ({"filter": {"kind": "general", "a": [-1.0], "b": [2.0]}},
@@ -264,19 +293,43 @@ def test_passthrough_keys_are_accepted_untouched():
     ],
 )  # fmt: skip
 def test_bad_keys_are_named(cfg, message):
-    with pytest.raises(ValueError) as info:
-        validate_offsets(cfg)
+    with pytest.raises(ScenarioError) as info:
+        spec(cfg)
     assert str(info.value).startswith(message), str(info.value)
-    with pytest.raises(ValueError):  # the same check guards the construction
-        offset_history(cfg, T, 3)
+    # the scenario names the same key with the same message (validate and generate use it)
+    doc = SCENARIO | {"variation": cfg}
+    with pytest.raises(ScenarioError) as whole:
+        parse_scenario(doc)
+    assert str(whole.value) == str(info.value)
 
 
-def test_every_documented_key_is_allowed():
-    assert set(VARIATION_KEYS) == {
+def test_scan_faster_than_half_a_turn_per_cycle_is_rejected():
+    doc = SCENARIO | {"rate_hz": 100}
+    sweep = {"kind": "sweep", "amplitude_deg": 30}
+    parse_scenario(doc | {"variation": {"scan": sweep | {"rate_dps": 17_999}}})
+    with pytest.raises(ScenarioError, match=r"^variation\.scan\.rate_dps: the scan turns 18000"):
+        parse_scenario(doc | {"variation": {"scan": sweep | {"rate_dps": 18_000}}})
+    raster = RASTER | {"elevation_rate_dps": 20_000}
+    with pytest.raises(ScenarioError, match=r"^variation\.scan\.elevation_rate_dps: "):
+        parse_scenario(doc | {"variation": {"scan": raster}})
+    segments = {"kind": "segments", "segments": [{"duration_s": 1, "rate_dps": [0, 0, 1]},
+                                                 {"duration_s": 1, "rate_dps": [0, 2e4, 0]}]}
+    with pytest.raises(ScenarioError, match=r"^variation\.scan\.segments: "):
+        parse_scenario(doc | {"variation": {"scan": segments}})
+
+
+def test_core_model_takes_plain_arguments():
+    model = OffsetModel()  # no offsets
+    h = model.history(T, 3)
+    assert np.all(h.lever_arm == 0) and np.array_equal(h.c_bvar_bref, np.tile(np.eye(3), (4, 1, 1)))
+    assert np.array_equal(SweepScan(np.array([0.0, 2.0, 0.0]), 0.1, 0.2).axis, [0.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match="axis"):
+        SweepScan(np.zeros(3), 0.1, 0.2)
+    with pytest.raises(ValueError, match="period_s"):
+        model.history(0.0, 3)
+    with pytest.raises(ValueError, match="cycles"):
+        model.history(T, -1)
+    assert set(VariationSpec.model_fields) == {
         "lever_arm_m", "bending", "displacement_m", "mounting_rph_deg", "scan", "filter",
         "lag_compensation", "method", "gravity", "topics",
     }  # fmt: skip
-    with pytest.raises(ValueError, match="period_s"):
-        offset_history({}, 0.0, 3)
-    with pytest.raises(ValueError, match="cycles"):
-        offset_history({}, T, -1)

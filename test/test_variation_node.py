@@ -12,8 +12,9 @@ bending, scan). Then, as separate processes over real DDS in this session's ROS 
    truncated reference and obeying the exactness rule) and recovers until the end.
 3. Invalid parameters or scenario: exit 2 naming the key.
 
-:class:`VariationSolver` (no DDS) is also checked in-process: identity with the offline path,
-duplicates, frame/layout mismatches. Every wait has a timeout; children are killed at teardown.
+:class:`~strapdown_ros.stages.variation.VariationStage` (no DDS), the node's core, is also
+checked in-process: identity with the offline path, duplicates, frame/layout mismatches, any
+chunking of decoded or raw input. Every wait has a timeout; children are killed at teardown.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ from strapdown_ros.core.exactness import stream_residuals  # noqa: E402
 from strapdown_ros.core.variation import OffsetArrays, _window, generate_variation  # noqa: E402
 from strapdown_ros.messages import stream_from_messages  # noqa: E402
 from strapdown_ros.stages.variation import (  # noqa: E402
-    VariationSolver,  # noqa: E402
+    MAX_WINDOW,
+    VariationStage,
     scenario_offsets,
     variation_batches,
     variation_settings,
@@ -55,8 +57,8 @@ RECORDER = HELPERS / "raw_recorder.py"
 REPLAY = HELPERS / "reference_replay.py"
 DURATION_S = 2.0
 CYCLES = 400  # reference cycles 0..400 at 200 Hz
-#: A variation with a lever arm, a bending sinusoid and a scan (keys: strapdown_ros.core.offsets);
-#: it replaces any variation section of the scenario file.
+#: A variation with a lever arm, a bending sinusoid and a scan (keys:
+#: strapdown_ros.config.variation); it replaces any variation section of the scenario file.
 VARIATION = (
     "variation={lever_arm_m: [-6.0, 1.5, -0.3], displacement_m: [0.0, 0.0, 0.15], "
     "bending: {sinusoids: [{amplitude_m: [0.0, 0.0, 0.02], frequency_hz: 3.0}]}, "
@@ -408,7 +410,7 @@ def test_invalid_input_exits_2(params, expected, ros_env):
 
 
 # ---------------------------------------------------------------------------------------------
-# VariationSolver in-process (no DDS)
+# VariationStage in-process (no DDS)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -434,11 +436,10 @@ def _inputs(contents) -> list[tuple[str, bytes]]:
     return [(("odom", "imu")[k], bytes(data[k].payloads[i])) for k, i, _ in merge_order(batches)]
 
 
-def _solver(scenario) -> tuple[VariationSolver, _Log, _Log]:
+def _solver(scenario) -> tuple[VariationStage, _Log, _Log]:
     warn, error = _Log(), _Log()
-    offsets = scenario_offsets(scenario, CYCLES + 1)
     return (
-        VariationSolver(scenario, CYCLES, offsets, info=_Log(), warn=warn, error=error),
+        VariationStage(scenario, CYCLES, info=_Log(), warn=warn, error=error),
         warn,
         error,
     )
@@ -586,3 +587,63 @@ def test_solver_starts_afresh_when_the_input_restarts(bag, scenario):
         want = [bytes(p) for p in contents.topics[topic].payloads]
         assert got[topic][-len(want) :] == want, topic
     assert solver.finished and not error.lines
+
+
+def _decoded(contents):
+    imu, odom = contents.topics["/reference/imu"], contents.topics["/reference/odom"]
+    return cdr.deserialize(imu.msgtype, imu.payloads), cdr.deserialize(odom.msgtype, odom.payloads)
+
+
+def _joined(outputs: list[list[Batch]]) -> dict[str, list[bytes]]:
+    got: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
+    for batches in outputs:
+        for b in batches:
+            got[b.topic] += [bytes(p) for p in b.payloads]
+    return got
+
+
+@pytest.mark.parametrize(
+    ("chunk", "max_window"), [(1, None), (7, MAX_WINDOW), (64, 5), (401, None), (1000, 6)]
+)
+def test_stage_decoded_input_in_any_chunking_equals_generate(bag, scenario, chunk, max_window):
+    """What ``generate`` feeds (decoded messages, any piece size, any window cap): the bag's
+    bytes, one run, no warning."""
+    _, contents = bag
+    imu, odom = _decoded(contents)
+    warn, error = _Log(), _Log()
+    stage = VariationStage(scenario, CYCLES, max_window=max_window, warn=warn, error=error)
+    outputs = []
+    for i in range(0, CYCLES + 1, chunk):
+        # Imu m goes with Odometry m; an Imu chunk may also lag the Odometry one
+        outputs.append(stage.feed(imu.rows(max(i - 1, 0), i - 1 + chunk), odom.rows(i, i + chunk)))
+    want = {t: [bytes(p) for p in contents.topics[t].payloads] for t in OUTPUTS}
+    assert _joined(outputs) == want
+    assert stage.finished and stage.runs == 1 and not warn.lines and not error.lines
+    if max_window is not None:
+        assert len(stage.timing.wall) >= CYCLES // max_window
+
+
+def test_stage_decoded_and_raw_input_agree_on_faults(bag, scenario):
+    """A gap, a duplicate and a late message: decoded chunks publish what raw one-by-one
+    messages publish, with the same warnings."""
+    _, contents = bag
+    items = _inputs(contents)
+    items = [i for i in items if not (i[0] == "imu" and _cycle(scenario, _stamp_of(i[1])) == 150)]
+    items.insert(401, items[399])  # a duplicate (identical)
+    reference, want_warn, want_error = _solver(scenario)
+    want = _feed(reference, items)
+    # the same sequence as decoded chunks per topic (arrival order = stamp order, odom first)
+    imu = [p for k, p in items if k == "imu"]
+    odom = [p for k, p in items if k == "odom"]
+    stage, warn, error = _solver(scenario)
+    outputs = []
+    for i in range(0, len(odom), 50):
+        outputs.append(
+            stage.feed(
+                cdr.deserialize(cdr.IMU, imu[max(i - 1, 0) : i + 49]),
+                cdr.deserialize(cdr.ODOMETRY, odom[i : i + 50]),
+            )
+        )
+    assert _joined(outputs) == want
+    assert warn.lines == want_warn.lines and error.lines == want_error.lines
+    assert stage.runs == reference.runs == 2

@@ -32,6 +32,7 @@ from strapdown_ros.config.base import (
 )
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
+from strapdown_ros.config.variation import VariationSpec, check_variation
 
 __all__ = [
     "DEFAULT_FRAMES",
@@ -149,7 +150,7 @@ class Scenario(Model):
     initial: Initial | None = None
     # -- sections (each its own model; see config/<section>.py) --------------------------------
     trajectory: TrajectorySpec  # SECTION trajectory
-    variation: dict[str, Any] | None = None  # SECTION variation
+    variation: VariationSpec | None = None  # SECTION variation
     navigator: NavigatorSpec | None = None  # SECTION navigator
     imu_errors: dict[str, Any] | None = None  # SECTION imu_errors
     recording: Recording = Field(default_factory=Recording)
@@ -224,28 +225,12 @@ class Scenario(Model):
         check_trajectory(self)
         _legacy_sections(self)
         check_navigator(self)
+        check_variation(self)
         return self
 
 
 def _legacy_sections(scenario: Scenario) -> None:
     """Checks of the sections not yet typed (each moves into its section model)."""
-    variation = scenario.variation
-    if variation is not None:
-        from strapdown_ros.core.offsets import validate_offsets
-
-        try:
-            validate_offsets(variation)
-            if variation.get("method", 2) not in (1, 2) or isinstance(
-                variation.get("method"), bool
-            ):
-                raise ValueError(f"variation.method: must be 1 or 2, got {variation['method']!r}")
-            if variation.get("gravity", "full") not in ("full", "first_order"):
-                raise ValueError(
-                    f"variation.gravity: must be full or first_order, got {variation['gravity']!r}"
-                )
-        except ValueError as exc:
-            head, sep, rest = str(exc).partition(": ")
-            raise ScenarioError(head if sep else "variation", rest if sep else str(exc)) from None
     if scenario.imu_errors is not None:
         from strapdown_ros.core.imu_errors import ImuErrorsError, parse_imu_errors
 

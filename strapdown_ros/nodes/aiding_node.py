@@ -25,7 +25,7 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.stages.aiding import AidingStream, aiding_spec
+from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStream, aiding_spec
 
 NODE_NAME = "aiding_node"
 
@@ -53,15 +53,8 @@ class AidingNode(BatchedInputNode):
         self.stream = AidingStream(
             scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg)
         )
-        msgtypes = {
-            "/gnss/fix": cdr.NAVSATFIX,
-            "/gnss/vel": cdr.TWIST_WITH_COVARIANCE_STAMPED,
-            "/baro/pressure": cdr.FLUID_PRESSURE,
-            "/mag": cdr.MAGNETIC_FIELD,
-            "/wheel/twist": cdr.TWIST_WITH_COVARIANCE_STAMPED,
-        }
         for topic in self.stream.topics:
-            self.add_output(topic, message_class(msgtypes[topic]), self.qos)
+            self.add_output(topic, message_class(AIDING_MSGTYPES[topic]), self.qos)
         self.last_truth_ns = self._last_truth_stamp(scenario)
         self._subscription = None
         self._started = False

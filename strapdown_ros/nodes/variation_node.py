@@ -1,24 +1,15 @@
 """``variation_node``: the variation and the regenerated reference, live (SPEC §4, §6).
 
-It subscribes raw to the reference Imu and Odometry topics, decodes every payload with the
-project's CDR codec, pairs Imu m with Odometry m by stamp (``m = (stamp - start_time) / T``, the
-scenario's cycle grid) and, as soon as the look-ahead cycle 2n+1 of an even cycle 2n has
-arrived, solves the pair (2n-1, 2n) with :func:`~strapdown_ros.core.variation.generate_variation`
-on the 5-cycle window 2n-3..2n+1 (``lead=1``; at the start of a run the window is cycles 0..3,
-``lead=0``, giving cycles 0..2) twice: with the scenario's offsets at the absolute cycles (the
-variation) and with zero offsets (the regenerated reference). The new messages are serialized
-by the same :func:`~strapdown_ros.stages.variation.variation_batches` as ``strapdown-sim
-generate`` and
-published raw in :func:`~strapdown_ros.bag.batches.merge_order`. Because every window
-reproduces the vectorized offline solution bit for bit, the published messages are identical to
-the bag's, byte for byte. Input is taken in batches (:class:`~strapdown_ros.nodes._common.
-InputBatch`): the output lags the input by 1–2 cycles plus at most ``batch_period_s``.
-
-A gap, a duplicate with different content or an out-of-order stamp breaks that equivalence: it
-is logged (WARN, with the stamps) and the solution restarts from the next consistent cycle as a
-new run (``lead=0``, one-sided velocity constraint), which then differs from an uninterrupted
-offline run by design. :class:`VariationSolver` holds that logic and no rclpy; the node wraps it.
-Parameters and behaviour: docs/nodes.md.
+A thin rclpy shell over :class:`~strapdown_ros.stages.variation.VariationStage` (the same
+streaming stage ``strapdown-sim generate`` runs): it subscribes raw to the reference Imu and
+Odometry topics, hands the payloads to the stage in batches (:class:`~strapdown_ros.nodes.
+_common.InputBatch`) and publishes the serialized ``/variation/*`` and ``/variation/reference/*``
+messages it returns, which are byte-identical to the bag's. The stage pairs the messages by
+stamp on the scenario's cycle grid, solves Method 2 in windows of at most
+:data:`~strapdown_ros.stages.variation.MAX_WINDOW` cycles, and logs and handles gaps, repeats,
+out-of-order stamps, frame mismatches and restarts (a new run, which differs from an
+uninterrupted offline run by design). Method 1 is offline only. Parameters and behaviour:
+docs/nodes.md.
 
 Exit status: 0 done (or stopped by SIGINT/SIGTERM), 1 failure while running, 2 invalid
 parameter or scenario.
@@ -28,7 +19,6 @@ from __future__ import annotations
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.config import Scenario, ScenarioError
-from strapdown_ros.core.variation import GRAVITY_MODES
 from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._common import (
     ParameterError,
@@ -39,13 +29,7 @@ from strapdown_ros.nodes._common import (
     run_node,
 )
 from strapdown_ros.stages.reference import build_trajectory, output_cycles
-from strapdown_ros.stages.variation import (
-    IMU,
-    ODOM,
-    VariationSolver,
-    scenario_offsets,
-    variation_settings,
-)
+from strapdown_ros.stages.variation import IMU, ODOM, VariationStage
 
 NODE_NAME = "variation_node"
 #: Input topic parameters and the recording.topics key each defaults to.
@@ -63,20 +47,6 @@ OUTPUT_PARAMETERS = {
 }
 
 
-
-
-
-
-
-
-
-
-
-
-
-# ----------------------------------------------------------------------------------------------
-
-
 class VariationNode(BatchedInputNode):
     """Reference Imu/Odometry in; variation and regenerated reference out."""
 
@@ -87,11 +57,6 @@ class VariationNode(BatchedInputNode):
             raise ScenarioError("variation", "missing: the scenario defines no variation")
         method, gravity = _check_settings(scenario)
         cycles = output_cycles(scenario, build_trajectory(scenario))
-        try:
-            offsets = scenario_offsets(scenario, cycles + 1)
-        except ValueError as exc:  # offsets name the dotted key: "variation.x: problem"
-            key, sep, problem = str(exc).partition(": ")
-            raise ScenarioError(key if sep else "variation", problem if sep else str(exc)) from None
 
         topics = dict(scenario.recording.topics)
         names: dict[str, str] = {}
@@ -114,10 +79,9 @@ class VariationNode(BatchedInputNode):
 
         self.scenario = scenario.with_recording(topics=topics)
         log = self.get_logger()
-        self.solver = VariationSolver(
+        self.solver = VariationStage(
             self.scenario,
             cycles,
-            offsets,
             info=log.info,
             warn=lambda msg: log.warning(msg),
             error=lambda msg: log.error(msg, throttle_duration_sec=1.0),
@@ -176,26 +140,15 @@ class VariationNode(BatchedInputNode):
 
 def _check_settings(scenario: Scenario) -> tuple[int, str]:
     """``variation.method`` / ``gravity`` the node supports (ScenarioError naming the key)."""
-    cfg = scenario.variation or {}
-    try:
-        method, gravity = variation_settings(scenario)
-    except (TypeError, ValueError) as exc:
-        raise ScenarioError(
-            "variation.method", f"must be 1 or 2, got {cfg.get('method')!r}"
-        ) from exc
-    if method == 1:
+    spec = scenario.variation
+    assert spec is not None
+    if spec.method == 1:
         raise ScenarioError(
             "variation.method",
             "variation_node implements Method 2 only (Method 1's velocity recursion runs "
             "through the whole stream); use strapdown-sim generate for Method 1",
         )
-    if method != 2:
-        raise ScenarioError("variation.method", f"must be 1 or 2, got {method!r}")
-    if gravity not in GRAVITY_MODES:
-        raise ScenarioError(
-            "variation.gravity", f"must be one of {', '.join(GRAVITY_MODES)}, got {gravity!r}"
-        )
-    return method, gravity
+    return spec.method, spec.gravity
 
 
 def main(args: list[str] | None = None) -> int:

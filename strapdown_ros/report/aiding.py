@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import BagContents
@@ -166,18 +168,21 @@ def plot_aiding(errors: dict[str, AidingError], title: str, path: Path) -> Path:
     FigureCanvasAgg(fig)
     axes = fig.subplots(n, 1, squeeze=False)[:, 0]
     for ax, e in zip(axes, errors.values(), strict=True):
-        for k, axis in enumerate(e.axes):
+        for k in range(len(e.axes)):
             color = AXIS_COLORS[k % 3]
-            ax.plot(e.t, e.error[:, k], ".", ms=1.5, color=color, label=axis)
+            ax.plot(e.t, e.error[:, k], ".", ms=1.5, color=color)
             ax.fill_between(e.t, -e.sigma[:, k], e.sigma[:, k], color=color, alpha=0.12,
                             lw=0)  # fmt: skip
         for a, b in e.gaps:
             ax.axvspan(a, b, color="grey", alpha=0.25, lw=0)
+        handles = [Line2D([], [], ls="", marker="o", color=AXIS_COLORS[k % 3], label=axis)
+                   for k, axis in enumerate(e.axes)]  # fmt: skip
         if e.gaps:
-            ax.plot([], [], "s", color="grey", alpha=0.4, label="outage")
-        ax.set(ylabel=f"{e.what} [{e.unit}]", title=f"{e.topic}: measured − truth, ±σ band")
+            handles.append(Patch(color="grey", alpha=0.25, label="outage"))
+        handles.append(Patch(color="grey", alpha=0.12, label="±σ (message covariance)"))
+        ax.set(ylabel=f"{e.what} [{e.unit}]", title=f"{e.topic}: measured − truth")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper right", ncol=4, markerscale=6)
+        ax.legend(handles=handles, fontsize=8, loc="upper right", ncol=len(handles))
     axes[-1].set_xlabel("time since start [s]")
     fig.suptitle(title, fontsize=12)
     path = Path(path)

@@ -60,15 +60,19 @@ from strapdown_ros.messages import (
 )
 
 __all__ = [
+    "AIDING_MSGTYPES",
     "NOT_MEASURED_VARIANCE",
     "AidingOutput",
     "AidingStream",
     "TruthRows",
     "aiding_custom_data",
     "aiding_expected_counts",
+    "aiding_log_delays",
     "aiding_spec",
+    "aiding_topic_types",
     "epochs_in",
     "error_free_spec",
+    "generate_aiding_stream",
     "igrf_coefficients",
 ]
 
@@ -85,6 +89,41 @@ def _ignore(_: str) -> None:
 def aiding_spec(scenario: Scenario) -> AidingSpec | None:
     """The scenario's ``aiding`` section (None without one)."""
     return getattr(scenario, "aiding", None)
+
+
+#: Message type of each aiding topic.
+AIDING_MSGTYPES: dict[str, str] = {
+    AIDING_TOPICS["gnss_fix"]: cdr.NAVSATFIX,
+    AIDING_TOPICS["gnss_vel"]: cdr.TWIST_WITH_COVARIANCE_STAMPED,
+    AIDING_TOPICS["baro"]: cdr.FLUID_PRESSURE,
+    AIDING_TOPICS["mag"]: cdr.MAGNETIC_FIELD,
+    AIDING_TOPICS["wheel"]: cdr.TWIST_WITH_COVARIANCE_STAMPED,
+}
+
+
+def aiding_topic_types(scenario: Scenario) -> dict[str, str]:
+    """Topic -> message type of the aiding topics the scenario produces (enabled sensors)."""
+    spec = aiding_spec(scenario)
+    return {} if spec is None else {t: AIDING_MSGTYPES[t] for t in spec.topics()}
+
+
+def aiding_log_delays(scenario: Scenario) -> dict[str, int]:
+    """Bag log time minus header stamp (ns) of the aiding topics that have one (the GNSS
+    latency), for a recorder that logs at header stamps to write what ``generate`` writes."""
+    spec = aiding_spec(scenario)
+    gnss = None if spec is None else spec.sensors().get("gnss")
+    if gnss is None or not gnss.latency_ns:  # type: ignore[attr-defined]
+        return {}
+    delay = gnss.latency_ns  # type: ignore[attr-defined]
+    return {AIDING_TOPICS["gnss_fix"]: delay, AIDING_TOPICS["gnss_vel"]: delay}
+
+
+def generate_aiding_stream(scenario: Scenario) -> AidingStream | None:
+    """The :class:`AidingStream` of ``generate`` (None without enabled aiding sensors)."""
+    spec = aiding_spec(scenario)
+    if spec is None or not spec.sensors():
+        return None
+    return AidingStream(scenario, spec)
 
 
 @functools.lru_cache(maxsize=8)

@@ -1,47 +1,76 @@
 """The variation stage: a second IMU at a lever arm / on a scanning platform, streaming.
 
-Savage 2020 Method 2 (and Method 1 offline), theory in docs/variation.md and
-docs/theory/offsets.md.
+One object, :class:`VariationStage`, computes the variation and the regenerated reference from
+the reference Imu/Odometry messages for both ``strapdown-sim generate`` (decoded pieces, one
+large window per piece) and ``variation_node`` (raw payloads in batches, windows of at most
+:data:`MAX_WINDOW` cycles). Savage 2020 Method 2 (and Method 1 offline); theory in
+docs/variation.md and docs/theory/offsets.md, the node's behaviour in docs/nodes.md.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import struct
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, merge_order, stream_batches
 from strapdown_ros.config import Scenario
+from strapdown_ros.config.variation import VariationSpec
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
 
+__all__ = [
+    "IMU",
+    "MAX_LATE_CYCLES",
+    "MAX_WINDOW",
+    "ODOM",
+    "Timing",
+    "VariationStage",
+    "format_stamp",
+    "scenario_offsets",
+    "variation_batches",
+    "variation_settings",
+    "variation_streams",
+]
+
 IMU, ODOM = "imu", "odom"
+Log = Callable[[str], None]
+Message = tuple[str, int, bytes]  # (topic, stamp_ns, serialized payload)
+
+#: An older stamp at most this many cycles behind the last one is a late message (dropped);
+#: a larger backward jump means the input stream restarted (the stage starts afresh).
+MAX_LATE_CYCLES = 10
+
+#: Longest window (cycles) the live node solves at once when it catches up on a backlog.
+MAX_WINDOW = 401
+
+
+def _spec(scenario: Scenario) -> VariationSpec:
+    return scenario.variation if scenario.variation is not None else VariationSpec()
 
 
 def variation_settings(scenario: Scenario) -> tuple[int, str]:
     """``variation.method`` (default 2) and ``variation.gravity`` (default ``full``)."""
-    cfg = scenario.variation or {}
-    return int(cfg.get("method", 2)), str(cfg.get("gravity", "full"))
+    spec = _spec(scenario)
+    return spec.method, spec.gravity
 
 
 def scenario_offsets(scenario: Scenario, samples: int) -> OffsetArrays:
     """Offsets of the scenario's ``variation`` section on the output cycle grid m = 0..N-1."""
-    from strapdown_ros.core.offsets import offset_history
-
-    history = offset_history(scenario.variation or {}, scenario.period_ns * 1e-9, samples - 1)
+    history = _spec(scenario).offset_model().history(scenario.period_ns * 1e-9, samples - 1)
     return OffsetArrays(history.lever_arm, history.displacement, history.c_bvar_bref)
 
 
 def variation_streams(scenario: Scenario, reference: Stream) -> tuple[Stream, Stream]:
-    """The variation and the regenerated reference (zero offsets, same routines) of a scenario."""
+    """The variation and the regenerated reference (zero offsets) of a whole reference stream."""
     method, gravity = variation_settings(scenario)
     samples = reference.cycles + 1
     variation = generate_variation(reference, scenario_offsets(scenario, samples), method, gravity)
@@ -50,15 +79,14 @@ def variation_streams(scenario: Scenario, reference: Stream) -> tuple[Stream, St
 
 
 def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream) -> list[Batch]:
-    """Serialized ``/variation/*`` and ``/variation/reference/*`` batches."""
+    """Serialized ``/variation/*`` and ``/variation/reference/*`` batches (recording names)."""
     rec = scenario.recording
-    frame = rec.frames["variation_imu"]
     batches = stream_batches(
         variation,
         imu_topic=rec.topics["variation_imu"],
         odom_topic=rec.topics["variation_odom"],
         fix_topic=rec.topics["variation_fix"],
-        body_frame=frame,
+        body_frame=rec.frames["variation_imu"],
         earth_frame=rec.frames["earth"],
     )
     batches += stream_batches(
@@ -72,90 +100,15 @@ def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream
     return batches
 
 
-class _VariationStreamer:
-    """Variation and regenerated reference computed piece by piece as the reference arrives.
-
-    Works on the decoded reference messages (like ``variation_node``) and on windows that start
-    one cycle before the last emitted even cycle (``lead=1``): the windows give bit-identical
-    results to one vectorized run over the whole stream (Method 2 pairs are independent).
-    """
-
-    def __init__(self, scenario: Scenario, total: int) -> None:
-        self.scenario = scenario
-        self.method, self.gravity = variation_settings(scenario)
-        self.offsets = scenario_offsets(scenario, total + 1)
-        self.zero = OffsetArrays.zero(total + 1)
-        self.imu: ImuFields | None = None
-        self.odom: OdometryFields | None = None
-        self.emitted = -1  # last variation cycle published (even), -1: none yet
-        self.base = 0  # cycle of self.odom's first row (self.imu's first row is cycle base + 1)
-        rec = scenario.recording
-        self.imu_topic = rec.topics["reference_imu"]
-        self.odom_topic = rec.topics["reference_odom"]
-
-    def feed(self, batches: list[Batch], res: dict[str, Residuals]) -> list[Batch]:
-        """Take one reference piece's batches; return the variation batches now computable."""
-        by_topic = {b.topic: b for b in batches}
-        imu_b, odom_b = by_topic[self.imu_topic], by_topic[self.odom_topic]
-        imu = cdr.deserialize(imu_b.msgtype, imu_b.payloads)
-        odom = cdr.deserialize(odom_b.msgtype, odom_b.payloads)
-        self.imu = imu if self.imu is None else self.imu.append(imu)  # type: ignore[union-attr]
-        self.odom = odom if self.odom is None else self.odom.append(odom)  # type: ignore[union-attr]
-        avail = self.base + len(self.odom) - 1  # reference cycles base..avail are held
-        last = (avail - 1) - (avail - 1) % 2  # last even cycle with its look-ahead sample
-        if last < 2 or last <= self.emitted:
-            return []
-        lead = 0 if self.emitted < 0 else 1
-        a = 0 if lead == 0 else self.emitted - 1
-        b0 = self.base
-        window = stream_from_messages(
-            self.imu.rows(a - b0, last + 1 - b0),  # type: ignore[union-attr]
-            self.odom.rows(a - b0, last + 2 - b0),
-            self.scenario.gravity_model,
-            e0_epoch_ns=self.scenario.start_time_ns,
-        )
-        sl = slice(a, last + 2)
-        off = OffsetArrays(
-            self.offsets.lever_arm[sl], self.offsets.displacement[sl], self.offsets.c_bvar_bref[sl]
-        )
-        zero = OffsetArrays(
-            self.zero.lever_arm[sl], self.zero.displacement[sl], self.zero.c_bvar_bref[sl]
-        )
-        variation = generate_variation(window, off, self.method, self.gravity, lead)
-        regenerated = generate_variation(window, zero, self.method, self.gravity, lead)
-        res["variation"] = stream_residuals(variation)
-        res["variation/reference"] = stream_residuals(regenerated)
-        out = variation_batches(self.scenario, variation, regenerated)
-        if lead:
-            out = [_drop_up_to(b, variation.t0_ns) for b in out]  # truth already published
-        self.emitted = last
-        # keep only what the next window (from cycle last - 1) needs: memory stays bounded
-        keep = last - 1 - self.base
-        self.odom = self.odom.rows(keep, len(self.odom))
-        self.imu = self.imu.rows(keep, len(self.imu))  # type: ignore[union-attr]
-        self.base = last - 1
-        return out
-
-
-Log = Callable[[str], None]
-
-
-#: An older stamp at most this many cycles behind the last one is a late message (dropped);
-#: a larger backward jump means the input stream restarted (the solver starts afresh).
-MAX_LATE_CYCLES = 10
-
-
-#: Longest window (cycles) solved at once when the node catches up on a backlog.
-MAX_WINDOW = 401
-
-
 def format_stamp(stamp_ns: int) -> str:
     """``sec.nanosec`` of a stamp (ns since the epoch)."""
     return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
 
 
-def _concat(items: list) -> object:
-    """One field container of several one-message containers of the same type."""
+def _concat(items: Sequence[Any]) -> Any:
+    """One field container of several containers of the same type (strings of the first)."""
+    if len(items) == 1:
+        return items[0]
     first = items[0]
     values = {}
     for f in dataclasses.fields(first):
@@ -172,6 +125,14 @@ def _drop_up_to(b: Batch, stamp_ns: int) -> Batch:
     return Batch(b.topic, b.msgtype, b.stamps_ns[keep:], list(b.payloads[keep:]))
 
 
+def _ignore(_: str) -> None:
+    pass
+
+
+def _raise(message: str) -> None:
+    raise RuntimeError(f"variation stage: unexpected reference input: {message}")
+
+
 @dataclass
 class Timing:
     """Processing time of the solved windows (wall and CPU seconds, one entry per window)."""
@@ -182,6 +143,7 @@ class Timing:
     decoded: int = 0
 
     def summary(self, cycles: int) -> str:
+        """One line: wall time per window, CPU per published cycle, decoding per message."""
         if not self.wall:
             return "no window solved"
         w = np.asarray(self.wall) * 1e3
@@ -194,47 +156,132 @@ class Timing:
         )
 
 
-class VariationSolver:
-    """The streaming variation (no rclpy): messages in, serialized messages out.
+class _Rows:
+    """Messages of one input by cycle: pieces ``(first cycle, field container)``, increasing."""
+
+    def __init__(self) -> None:
+        self.pieces: list[tuple[int, Any]] = []
+
+    def add(self, m0: int, rows: Any) -> None:
+        """Append messages of cycles ``m0..`` (after every cycle held)."""
+        self.pieces.append((m0, rows))
+
+    def _find(self, m: int) -> int:
+        for i, (m0, rows) in enumerate(self.pieces):
+            if m0 <= m < m0 + len(rows):
+                return i
+        return -1
+
+    def frames(self, m: int) -> Any:
+        """The container holding cycle ``m`` (its frame ids), None if ``m`` is not held."""
+        i = self._find(m)
+        return None if i < 0 else self.pieces[i][1]
+
+    def discard(self, m: int) -> None:
+        """Forget cycle ``m``."""
+        i = self._find(m)
+        if i < 0:
+            return
+        m0, rows = self.pieces[i]
+        n = len(rows)
+        parts = []
+        if m > m0:
+            parts.append((m0, rows.rows(0, m - m0)))
+        if m + 1 < m0 + n:
+            parts.append((m + 1, rows.rows(m + 1 - m0, n)))
+        self.pieces[i : i + 1] = parts
+
+    def drop_below(self, low: int) -> None:
+        """Forget the cycles before ``low``."""
+        kept = []
+        for m0, rows in self.pieces:
+            n = len(rows)
+            if m0 + n <= low:
+                continue
+            kept.append((m0, rows) if m0 >= low else (low, rows.rows(low - m0, n)))
+        self.pieces = kept
+
+    def contiguous_end(self, a: int) -> int:
+        """Last cycle c such that every cycle a..c is held (a - 1: ``a`` is not held)."""
+        end = a - 1
+        for m0, rows in self.pieces:
+            if m0 <= end + 1 < m0 + len(rows):
+                end = m0 + len(rows) - 1
+        return end
+
+    def take(self, a: int, b: int) -> Any:
+        """The messages of cycles ``a..b-1`` (all held) as one container."""
+        parts = []
+        for m0, rows in self.pieces:
+            n = len(rows)
+            lo, hi = max(a, m0), min(b, m0 + n)
+            if lo < hi:
+                parts.append(rows if hi - lo == n else rows.rows(lo - m0, hi - m0))
+        return _concat(parts)
+
+
+@dataclass
+class _Input:
+    """One input's messages in a call: decoded rows (None: decode each payload), payloads."""
+
+    kind: str
+    fields: Any
+    payloads: list[bytes] | None
+    positions: np.ndarray  # arrival order of each message among all inputs of the call
+
+    def __len__(self) -> int:
+        return int(self.positions.shape[0])
+
+
+class VariationStage:
+    """The streaming variation: reference messages in, serialized variation messages out.
 
     Parameters
     ----------
     scenario : Scenario
-        Supplies the cycle grid (``start_time_ns``, T), the gravitation model, the variation
-        settings and the output topic/frame names (``recording``).
+        Cycle grid (``start_time_ns``, T), gravitation model, the ``variation`` section
+        (method, gravity, offsets) and the output topic/frame names (``recording``).
     cycles : int
-        M, the scenario's last reference cycle; later stamps are ignored.
-    offsets : OffsetArrays
-        The scenario's offsets at cycles 0..M
-        (:func:`~strapdown_ros.stages.variation.scenario_offsets`).
+        M, the scenario's last reference cycle; later stamps are dropped.
+    max_window : int or None
+        Longest window (cycles) solved at once; None: everything available (offline).
+    residuals : bool
+        Keep the one-step residuals of every solved window (see :meth:`feed_batches`).
     info, warn, error : callables
         Loggers.
 
-    :meth:`on_message` takes one raw payload of the Imu or Odometry input and returns the
-    ``(topic, stamp_ns, payload)`` to publish, in merge order.
+    Input, in any chunking (the output is the same bits): decoded messages with :meth:`feed`
+    (``generate``) or raw CDR payloads with :meth:`on_batch` / :meth:`on_message` (the node).
+    Messages are taken in arrival order; consecutive, consistent messages are accepted in bulk,
+    anything else one by one with the checks below, every pending window being solved before
+    such a message can change the run (so deferring the solution never changes the output).
 
     Runs. A run is a stretch of consecutive, consistent reference cycles ``start..``; its
     output equals ``generate_variation`` on the reference restricted to those cycles (the first
     run of an uninterrupted stream from cycle 0: the offline output). A gap, a duplicate with
-    different content, a frame change or an Imu/Odometry frame mismatch ends the run and
-    starts a new one at the first cycle whose data is all consistent; the published output
-    never overlaps between runs. An out-of-order message is dropped (the jump before it already
-    started a new run); an identical duplicate is dropped.
+    different content, a frame change or an Imu/Odometry frame mismatch ends the run and starts
+    a new one at the first cycle whose data is all consistent; the output never overlaps
+    between runs. An out-of-order message (at most :data:`MAX_LATE_CYCLES` back) is dropped, a
+    larger backward jump restarts everything (the input restarted); an identical duplicate is
+    dropped; stamps off the cycle grid or beyond cycle M are dropped.
     """
 
     def __init__(
         self,
         scenario: Scenario,
         cycles: int,
-        offsets: OffsetArrays,
-        info: Log = print,
+        *,
+        max_window: int | None = MAX_WINDOW,
+        residuals: bool = False,
+        info: Log = _ignore,
         warn: Log = print,
         error: Log = print,
     ) -> None:
         self.scenario = scenario
         self.method, self.gravity = variation_settings(scenario)
         self.cycles = cycles
-        self.offsets = offsets
+        self.max_window = max_window
+        self.offsets = scenario_offsets(scenario, cycles + 1)
         self.t0_ns = scenario.start_time_ns
         self.period_ns = scenario.period_ns
         self.earth_frame = scenario.recording.frames["earth"]
@@ -244,8 +291,9 @@ class VariationSolver:
             ODOM: scenario.recording.topics["reference_odom"],
         }
         self.last: dict[str, int | None] = {IMU: None, ODOM: None}
-        self.last_payload: dict[str, bytes] = {IMU: b"", ODOM: b""}
-        self.buffer: dict[str, dict[int, object]] = {IMU: {}, ODOM: {}}
+        self.last_payload: dict[str, bytes | None] = {IMU: None, ODOM: None}
+        self.last_row: dict[str, Any] = {IMU: None, ODOM: None}
+        self.buffer = {IMU: _Rows(), ODOM: _Rows()}
         self.run_start: int | None = None
         self.published: int | None = None  # last cycle published in the current run
         self.body_frame: str | None = None  # Imu frame id (= Odometry child) of the run
@@ -254,17 +302,30 @@ class VariationSolver:
         self.timing = Timing()
         self._warned_beyond = False
         self._warned_frame = False
+        self._windows: list[list[Batch]] = []  # solved, not yet handed out
+        self._residuals: dict[str, list[Residuals]] | None = (
+            {"variation": [], "variation/reference": []} if residuals else None
+        )
 
-    # ------------------------------------------------------------------------------------------
+    @classmethod
+    def offline(cls, scenario: Scenario, cycles: int) -> VariationStage:
+        """The stage as ``generate`` runs it: whole pieces per window, residuals kept, and any
+        irregular input (impossible from the reference stage) an error."""
+        return cls(scenario, cycles, max_window=None, residuals=True, warn=_raise, error=_raise)
+
+    # -- state -----------------------------------------------------------------------------------
 
     def stamp(self, m: int) -> str:
+        """``sec.nanosec`` of cycle ``m``."""
         return format_stamp(self.t0_ns + m * self.period_ns)
 
     def describe(self, m: int) -> str:
+        """``cycle m (stamp s.ns)``."""
         return f"cycle {m} (stamp {self.stamp(m)})"
 
     @property
     def started(self) -> bool:
+        """A run has started (the first usable message arrived)."""
         return self.run_start is not None
 
     @property
@@ -274,6 +335,156 @@ class VariationSolver:
             return False
         base = self.run_start if self.published is None else self.published
         return base + 3 > self.cycles
+
+    # -- input: decoded (generate) -------------------------------------------------------------
+
+    def feed(
+        self, imu: ImuFields | None = None, odom: OdometryFields | None = None, solve: bool = True
+    ) -> list[Batch]:
+        """Take decoded reference messages (in stamp order per topic; Odometry before Imu at
+        equal stamps); return the output batches now computable (one per topic)."""
+        n_imu = 0 if imu is None else len(imu)
+        n_odom = 0 if odom is None else len(odom)
+        keys = [np.zeros(0, np.int64)]  # arrival order: by stamp, each topic's order kept
+        for fields in (odom, imu):
+            if fields is not None and len(fields):
+                keys.append(np.maximum.accumulate(np.asarray(fields.stamps_ns, dtype=np.int64)))
+        order = np.argsort(np.concatenate(keys), kind="stable")
+        positions = np.empty(order.shape[0], dtype=np.int64)
+        positions[order] = np.arange(order.shape[0])
+        inputs = [
+            _Input(ODOM, odom, None, positions[:n_odom]),
+            _Input(IMU, imu, None, positions[n_odom : n_odom + n_imu]),
+        ]
+        self._ingest(inputs)
+        if solve:
+            self._advance()
+        return self._take_batches()
+
+    def feed_batches(
+        self, batches: Sequence[Batch], residuals: dict[str, Residuals] | None = None
+    ) -> list[Batch]:
+        """:meth:`feed` with the reference batches of a ``generate`` piece (other topics are
+        ignored); the residuals of the windows solved are put in ``residuals``."""
+        by_topic = {b.topic: b for b in batches}
+        decoded = {}
+        for kind in (IMU, ODOM):
+            b = by_topic.get(self.topics[kind])
+            decoded[kind] = None if b is None else cdr.deserialize(b.msgtype, b.payloads)
+        out = self.feed(decoded[IMU], decoded[ODOM])
+        if residuals is not None and self._residuals is not None:
+            for name, parts in self._residuals.items():
+                if parts:
+                    residuals[name] = Residuals(
+                        attitude=np.concatenate([p.attitude for p in parts]),
+                        velocity=np.concatenate([p.velocity for p in parts]),
+                        position=np.concatenate([p.position for p in parts]),
+                    )
+                parts.clear()
+        return out
+
+    # -- input: raw payloads (the node) --------------------------------------------------------
+
+    def on_batch(self, items: Sequence[tuple[str, bytes]]) -> list[Message]:
+        """Raw payloads ``(kind, payload)`` ('imu' | 'odom') in arrival order; return what to
+        publish, in merge order. Each input's payloads are decoded with one CDR call (a batch
+        that does not decode as a whole is decoded one by one, so each bad message is
+        reported)."""
+        self._push(items)
+        self._advance()
+        return self._take_messages()
+
+    def on_message(self, kind: str, payload: bytes, solve: bool = True) -> list[Message]:
+        """One raw payload; with ``solve=False`` it is only buffered (see :meth:`advance`)."""
+        self._push([(kind, payload)])
+        if solve:
+            self._advance()
+        return self._take_messages()
+
+    def advance(self) -> list[Message]:
+        """Solve every window whose look-ahead has arrived; return the messages to publish."""
+        self._advance()
+        return self._take_messages()
+
+    def _push(self, items: Sequence[tuple[str, bytes]]) -> None:
+        inputs = []
+        for kind, msgtype in ((ODOM, cdr.ODOMETRY), (IMU, cdr.IMU)):
+            idx = [i for i, (k, _) in enumerate(items) if k == kind]
+            payloads = [items[i][1] for i in idx]
+            fields = None
+            if payloads:
+                t = time.perf_counter()
+                try:
+                    fields = cdr.deserialize(msgtype, payloads)
+                except cdr.CdrError:
+                    fields = None  # decoded one by one below, each bad message reported
+                else:
+                    self.timing.decode_wall += time.perf_counter() - t
+                    self.timing.decoded += len(payloads)
+            inputs.append(_Input(kind, fields, payloads, np.asarray(idx, dtype=np.int64)))
+        self._ingest(inputs)
+
+    # -- checks --------------------------------------------------------------------------------
+
+    def _ingest(self, inputs: list[_Input]) -> None:
+        """Take the messages in arrival order: the consistent ones in bulk, others one by one."""
+        inputs = [i for i in inputs if len(i)]
+        done = {i.kind: 0 for i in inputs}
+        while True:
+            clean = {i.kind: done[i.kind] + self._clean_count(i, done[i.kind]) for i in inputs}
+            stop, odd = np.iinfo(np.int64).max, None
+            for i in inputs:
+                if clean[i.kind] < len(i) and int(i.positions[clean[i.kind]]) < stop:
+                    stop, odd = int(i.positions[clean[i.kind]]), i
+            for i in inputs:
+                end = int(np.searchsorted(i.positions, stop)) if odd is not None else len(i)
+                if end > done[i.kind]:
+                    self._accept(i, done[i.kind], end)
+                    done[i.kind] = end
+            if odd is None:
+                return
+            self._advance()  # what the run can publish before this message changes anything
+            r = done[odd.kind]
+            row = None if odd.fields is None else odd.fields.rows(r, r + 1)
+            self._one(odd.kind, row, None if odd.payloads is None else bytes(odd.payloads[r]))
+            done[odd.kind] = r + 1
+
+    def _clean_count(self, inp: _Input, start: int) -> int:
+        """How many messages from ``start`` simply continue the run (accepted in bulk)."""
+        kind, f = inp.kind, inp.fields
+        last = self.last[kind]
+        if f is None or last is None or self.run_start is None or self.body_frame is None:
+            return 0
+        if kind == ODOM:
+            if f.frame_id != self.earth_frame or f.child_frame_id != self.body_frame:
+                return 0
+        elif f.frame_id != self.body_frame:
+            return 0
+        if last + 1 < self.run_start + (kind == IMU):
+            return 0
+        n = min(len(inp) - start, self.cycles - last)
+        if n <= 0:
+            return 0
+        first = self.t0_ns + (last + 1) * self.period_ns
+        if n <= 8:  # the node's usual batch: cheaper without numpy
+            for k, stamp in enumerate(f.stamps_ns[start : start + n].tolist()):
+                if stamp != first + k * self.period_ns:
+                    return k
+            return n
+        stamps = np.asarray(f.stamps_ns[start : start + n], dtype=np.int64)
+        expected = first + np.arange(n, dtype=np.int64) * self.period_ns
+        bad = np.flatnonzero(stamps != expected)
+        return int(bad[0]) if bad.size else n
+
+    def _accept(self, inp: _Input, start: int, stop: int) -> None:
+        """Messages ``start..stop-1`` of ``inp`` continue the run: buffer them."""
+        kind = inp.kind
+        m0 = self.last[kind] + 1  # type: ignore[operator]
+        f = inp.fields
+        self.buffer[kind].add(m0, f if start == 0 and stop == len(f) else f.rows(start, stop))
+        self.last[kind] = m0 + stop - start - 1
+        self.last_row[kind] = (f, stop - 1)  # a row is made only to compare a duplicate
+        self.last_payload[kind] = None if inp.payloads is None else bytes(inp.payloads[stop - 1])
 
     def _first_run_cycle(self, kind: str, m: int) -> int:
         """First run start that needs no data of ``kind`` before cycle ``m``.
@@ -285,8 +496,9 @@ class VariationSolver:
     def _reset(self) -> None:
         """Forget everything (the input restarted)."""
         self.last = {IMU: None, ODOM: None}
-        self.last_payload = {IMU: b"", ODOM: b""}
-        self.buffer = {IMU: {}, ODOM: {}}
+        self.last_payload = {IMU: None, ODOM: None}
+        self.last_row = {IMU: None, ODOM: None}
+        self.buffer = {IMU: _Rows(), ODOM: _Rows()}
         self.run_start = self.published = self.body_frame = None
 
     def restart(self, start: int, reason: str, log: bool = True) -> None:
@@ -316,85 +528,39 @@ class VariationSolver:
         self.run_start = start
         self.published = None
         self.body_frame = None
-        for kind, low in ((ODOM, start), (IMU, start + 1)):
-            buf = self.buffer[kind]
-            for m in [m for m in buf if m < low]:
-                del buf[m]
+        self.buffer[ODOM].drop_below(start)
+        self.buffer[IMU].drop_below(start + 1)
 
-    # ------------------------------------------------------------------------------------------
+    def _same(self, kind: str, row: Any, payload: bytes | None) -> bool:
+        if payload is not None and self.last_payload[kind] is not None:
+            return payload == self.last_payload[kind]
+        last = self.last_row[kind]
+        if isinstance(last, tuple):
+            last = last[0].rows(last[1], last[1] + 1)
+        return last is not None and row.equals(last)
 
-    def on_batch(self, items: list[tuple[str, bytes]]) -> list[tuple[str, int, bytes]]:
-        """Raw payloads ``(kind, payload)`` in arrival order, then :meth:`advance`.
-
-        The same as :meth:`on_message` with ``solve=False`` one by one followed by
-        :meth:`advance`, but each topic's payloads are decoded with one CDR call (a batch that
-        does not decode as a whole is decoded one by one, so each bad message is reported).
-        """
-        decoded: dict[str, list[object] | None] = {}
-        for kind, msgtype in ((IMU, cdr.IMU), (ODOM, cdr.ODOMETRY)):
-            payloads = [p for k, p in items if k == kind]
-            decoded[kind] = None
-            if payloads:
-                t = time.perf_counter()
-                try:
-                    fields = cdr.deserialize(msgtype, payloads)
-                except cdr.CdrError:
-                    continue
-                decoded[kind] = [fields.rows(i, i + 1) for i in range(len(payloads))]  # type: ignore[attr-defined]
-                self.timing.decode_wall += time.perf_counter() - t
-                self.timing.decoded += len(payloads)
-        out: list[tuple[str, int, bytes]] = []
-        index = {IMU: 0, ODOM: 0}
-        for kind, payload in items:
-            rows = decoded[kind]
-            msg = None if rows is None else rows[index[kind]]
-            index[kind] += 1
-            out += self.on_message(kind, payload, solve=False, decoded=msg)
-        return out + self.advance()
-
-    def on_message(
-        self, kind: str, payload: bytes, solve: bool = True, decoded: object | None = None
-    ) -> list[tuple[str, int, bytes]]:
-        """Take one raw payload of ``kind`` ('imu' | 'odom'); return what to publish.
-
-        With ``solve=False`` the message is only buffered; a later :meth:`advance` solves
-        everything pending in one window (how the node catches up when input piles up). A
-        message that breaks the sequence (gap, repeat, jump) first flushes what the current run
-        can still solve, so deferring never changes what is published.
-        """
-        last = self.last[kind]
-        if not solve and last is not None and len(payload) >= 12:
-            little = payload[1] & 1
-            sec, nanosec = struct.unpack_from("<iI" if little else ">iI", payload, 4)
-            stamp = sec * 1_000_000_000 + nanosec
-            if stamp != self.t0_ns + (last + 1) * self.period_ns:
-                return self.advance() + self._on_message(kind, payload, solve, decoded)
-        return self._on_message(kind, payload, solve, decoded)
-
-    def _on_message(
-        self, kind: str, payload: bytes, solve: bool, decoded: object | None = None
-    ) -> list[tuple[str, int, bytes]]:
+    def _one(self, kind: str, msg: Any, payload: bytes | None) -> None:
+        """One message that does not simply continue the run (first, gap, repeat, frames...)."""
         topic = self.topics[kind]
         msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
-        msg = decoded
         if msg is None:
             t = time.perf_counter()
             try:
-                msg = cdr.deserialize(msgtype, [payload])
+                msg = cdr.deserialize(msgtype, [payload])  # type: ignore[list-item]
             except cdr.CdrError as exc:
                 self.error(f"{topic}: rejected a message that is not a {msgtype} of the "
                            f"expected layout: {exc}")  # fmt: skip
-                return []
+                return
             self.timing.decode_wall += time.perf_counter() - t
             self.timing.decoded += 1
-        stamp = int(msg.stamps_ns[0])  # type: ignore[attr-defined]
+        stamp = int(msg.stamps_ns[0])
         offset = stamp - self.t0_ns
         if offset < 0 or offset % self.period_ns:
             self.warn(
                 f"{topic}: stamp {format_stamp(stamp)} is not on the scenario's cycle grid "
                 f"(start {format_stamp(self.t0_ns)}, T = {self.period_ns} ns); dropped"
             )
-            return []
+            return
         m = offset // self.period_ns
         if m > self.cycles or (kind == IMU and m == 0):
             if not self._warned_beyond:
@@ -403,24 +569,24 @@ class VariationSolver:
                     f"{topic}: {self.describe(m)} is outside the scenario's cycles "
                     f"({'1' if kind == IMU else '0'}..{self.cycles}); such messages are dropped"
                 )
-            return []
+            return
 
         last = self.last[kind]
         if last is None:
-            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self._remember(kind, m, msg, payload)
             self.restart(self._first_run_cycle(kind, m), f"first message on {topic}")
         elif m == last + 1:
-            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self._remember(kind, m, msg, payload)
         elif m == last:
-            if bytes(payload) == self.last_payload[kind]:
+            if self._same(kind, msg, payload):
                 self.warn(f"{topic}: duplicate stamp {format_stamp(stamp)} (cycle {m}), "
                           "identical content; dropped")  # fmt: skip
-                return []
+                return
             self.warn(f"{topic}: duplicate stamp {format_stamp(stamp)} (cycle {m}) "
                       "with different content; both dropped")  # fmt: skip
-            self.buffer[kind].pop(m, None)
+            self.buffer[kind].discard(m)
             self.restart(self._first_run_cycle(kind, m + 1), f"{topic}: duplicate")
-            return []
+            return
         elif m < last - MAX_LATE_CYCLES:
             self.warn(
                 f"{topic}: stamp {format_stamp(stamp)} (cycle {m}) jumps back "
@@ -428,57 +594,58 @@ class VariationSolver:
                 f"(cycle {last}): the input restarted; starting afresh"
             )
             self._reset()
-            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self._remember(kind, m, msg, payload)
             self.restart(self._first_run_cycle(kind, m), f"first message on {topic} after the jump")
         elif m < last:
             self.warn(
                 f"{topic}: out-of-order stamp {format_stamp(stamp)} (cycle {m}) after "
                 f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); dropped"
             )
-            return []
+            return
         else:
             self.warn(
                 f"{topic}: gap: stamp {format_stamp(stamp)} (cycle {m}) follows "
                 f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); "
                 f"{m - last - 1} cycle(s) missing"
             )
-            self.last[kind], self.last_payload[kind] = m, bytes(payload)
+            self._remember(kind, m, msg, payload)
             self.restart(self._first_run_cycle(kind, m), f"{topic}: gap")
 
-        if kind == ODOM and msg.frame_id != self.earth_frame:  # type: ignore[attr-defined]
+        if kind == ODOM and msg.frame_id != self.earth_frame:
             self.error(
-                f"{topic}: {self.describe(m)}: header.frame_id {msg.frame_id!r} is not the "  # type: ignore[attr-defined]
+                f"{topic}: {self.describe(m)}: header.frame_id {msg.frame_id!r} is not the "
                 f"Earth frame {self.earth_frame!r} (recording.frames.earth); rejected, the "
                 f"solution restarts at cycle {m + 1}"
             )
             self.restart(m + 1, "", log=False)
-            return []
+            return
         assert self.run_start is not None
         if m < self.run_start + (kind == IMU):
-            return []  # before the current run (the other topic restarted it later)
-        self.buffer[kind][m] = msg
-        if not self._check_frames(m):
-            return []
-        return self.advance() if solve else []
+            return  # before the current run (the other topic restarted it later)
+        self.buffer[kind].add(m, msg)
+        self._check_frames(m)
+
+    def _remember(self, kind: str, m: int, msg: Any, payload: bytes | None) -> None:
+        self.last[kind], self.last_row[kind], self.last_payload[kind] = m, msg, payload
 
     def _check_frames(self, m: int) -> bool:
         """Imu frame = Odometry child frame at cycle m, and constant within the run."""
-        imu = self.buffer[IMU].get(m)
-        odom = self.buffer[ODOM].get(m)
-        if imu is not None and odom is not None and imu.frame_id != odom.child_frame_id:  # type: ignore[attr-defined]
+        imu = self.buffer[IMU].frames(m)
+        odom = self.buffer[ODOM].frames(m)
+        if imu is not None and odom is not None and imu.frame_id != odom.child_frame_id:
             self.error(
-                f"{self.describe(m)}: Imu frame_id {imu.frame_id!r} differs from the Odometry "  # type: ignore[attr-defined]
-                f"child_frame_id {odom.child_frame_id!r}: the reference messages do not "  # type: ignore[attr-defined]
+                f"{self.describe(m)}: Imu frame_id {imu.frame_id!r} differs from the Odometry "
+                f"child_frame_id {odom.child_frame_id!r}: the reference messages do not "
                 f"describe one body; rejected, the solution restarts at cycle {m + 1}"
             )
-            self.buffer[IMU].pop(m, None)
-            self.buffer[ODOM].pop(m, None)
+            self.buffer[IMU].discard(m)
+            self.buffer[ODOM].discard(m)
             self.restart(m + 1, "", log=False)
             return False
         for msg, name in ((imu, "Imu frame_id"), (odom, "Odometry child_frame_id")):
             if msg is None:
                 continue
-            frame = msg.frame_id if msg is imu else msg.child_frame_id  # type: ignore[attr-defined]
+            frame = msg.frame_id if msg is imu else msg.child_frame_id
             if self.body_frame is None:
                 self.body_frame = frame
                 expected = self.scenario.recording.frames["reference_imu"]
@@ -493,83 +660,101 @@ class VariationSolver:
                     f"{self.describe(m)}: {name} {frame!r} differs from the run's body frame "
                     f"{self.body_frame!r}; rejected, the solution restarts at cycle {m + 1}"
                 )
-                self.buffer[IMU].pop(m, None)
-                self.buffer[ODOM].pop(m, None)
+                self.buffer[IMU].discard(m)
+                self.buffer[ODOM].discard(m)
                 self.restart(m + 1, "", log=False)
                 return False
         return True
 
-    # ------------------------------------------------------------------------------------------
+    # -- solving -------------------------------------------------------------------------------
 
-    def _catch_up_samples(self) -> int:
-        """Odd window length 5 + 2k covering every consecutive cycle already received."""
-        assert self.published is not None
-        first = self.published - 1
-        odom, imu = self.buffer[ODOM], self.buffer[IMU]
-        last = first + 4
-        while (
-            last + 2 - first < MAX_WINDOW
-            and last + 2 <= self.cycles
-            and all(m in odom and m in imu for m in (last + 1, last + 2))
-        ):
-            last += 2
-        return last - first + 1
-
-    def _window(self, first: int, samples: int) -> tuple[object, object] | None:
-        """Imu first+1.. and Odometry first.. of ``samples`` cycles, if all have arrived."""
-        odom, imu = self.buffer[ODOM], self.buffer[IMU]
-        cycles = range(first, first + samples)
-        if not all(m in odom for m in cycles) or not all(m in imu for m in cycles[1:]):
+    def _samples(self, first: int, base: int) -> int | None:
+        """Longest window from ``first`` (``base`` + 2k samples) whose messages have arrived."""
+        end = min(
+            self.buffer[ODOM].contiguous_end(first),
+            self.buffer[IMU].contiguous_end(first + 1),
+            self.cycles,
+        )
+        available = end - first + 1
+        if available < base:
             return None
-        return _concat([imu[m] for m in cycles[1:]]), _concat([odom[m] for m in cycles])
+        samples = base + 2 * ((available - base) // 2)
+        if self.max_window is not None:
+            cap = self.max_window - (self.max_window - base) % 2
+            samples = max(base, min(samples, cap))
+        return samples
 
-    def advance(self) -> list[tuple[str, int, bytes]]:
-        """Solve every window whose look-ahead has arrived; return the messages to publish."""
-        out: list[tuple[str, int, bytes]] = []
+    def _advance(self) -> None:
         while self.run_start is not None and not self.finished:
             if self.published is None:
-                first, samples, lead = self.run_start, 4, 0
+                first, lead = self.run_start, 0  # the run starts: cycles first..first+2 at least
+                samples = self._samples(first, 4)
             else:
-                # When input has piled up (the node fell behind), solve every complete pair in
-                # one longer window: lead=1 windows of any odd length give the same bits as the
-                # 5-cycle ones, at a fraction of the per-cycle cost, so the node catches up.
-                first, samples, lead = self.published - 1, self._catch_up_samples(), 1
-            window = self._window(first, samples)
-            if window is None:
+                # lead=1 windows of any odd length give the same bits as the 5-cycle ones
+                # (Method 2 pairs are independent), so a backlog is solved in long windows.
+                first, lead = self.published - 1, 1
+                samples = self._samples(first, 5)
+            if samples is None:
                 break
             wall, cpu = time.perf_counter(), time.thread_time()
-            out += self._solve(first, samples, lead, *window)
+            self._windows.append(self._solve(first, samples, lead))
             self.timing.wall.append(time.perf_counter() - wall)
             self.timing.cpu.append(time.thread_time() - cpu)
-            new_last = first + samples - 2 if lead else first + 2
+            new_last = first + samples - 2
             self.runs += self.published is None
             self.published_cycles += new_last - (self.published if lead else first - 1)
             self.published = new_last
-            for kind, low in ((ODOM, new_last - 1), (IMU, new_last)):
-                buf = self.buffer[kind]
-                for m in [m for m in buf if m < low]:
-                    del buf[m]
-        return out
+            self.buffer[ODOM].drop_below(new_last - 1)
+            self.buffer[IMU].drop_below(new_last)
 
-    def _solve(
-        self, first: int, samples: int, lead: int, imu: ImuFields, odom: OdometryFields
-    ) -> list[tuple[str, int, bytes]]:
+    def _solve(self, first: int, samples: int, lead: int) -> list[Batch]:
+        imu = self.buffer[IMU].take(first + 1, first + samples)
+        odom = self.buffer[ODOM].take(first, first + samples)
         reference = stream_from_messages(
             imu, odom, self.scenario.gravity_model, e0_epoch_ns=self.t0_ns
         )
         sl = slice(first, first + samples)
-        offsets = OffsetArrays(
-            self.offsets.lever_arm[sl], self.offsets.displacement[sl], self.offsets.c_bvar_bref[sl]
-        )
+        o = self.offsets
+        offsets = OffsetArrays(o.lever_arm[sl], o.displacement[sl], o.c_bvar_bref[sl])
         variation = generate_variation(reference, offsets, self.method, self.gravity, lead=lead)
         regenerated = generate_variation(
             reference, OffsetArrays.zero(samples), self.method, self.gravity, lead=lead
         )
+        if self._residuals is not None:
+            self._residuals["variation"].append(stream_residuals(variation))
+            self._residuals["variation/reference"].append(stream_residuals(regenerated))
         batches = variation_batches(self.scenario, variation, regenerated)
         if self.published is not None:
             done = self.t0_ns + self.published * self.period_ns
             batches = [_drop_up_to(b, done) for b in batches]
+        return batches
+
+    # -- output --------------------------------------------------------------------------------
+
+    def _take_messages(self) -> list[Message]:
+        out: list[Message] = []
+        for batches in self._windows:
+            out += [
+                (batches[k].topic, stamp, bytes(batches[k].payloads[i]))
+                for k, i, stamp in merge_order(batches)
+            ]
+        self._windows = []
+        return out
+
+    def _take_batches(self) -> list[Batch]:
+        windows, self._windows = self._windows, []
+        if len(windows) == 1:
+            return windows[0]
+        merged: dict[str, list[Batch]] = {}
+        for batches in windows:
+            for b in batches:
+                merged.setdefault(b.topic, []).append(b)
         return [
-            (batches[k].topic, stamp, bytes(batches[k].payloads[i]))
-            for k, i, stamp in merge_order(batches)
+            Batch(
+                topic,
+                parts[0].msgtype,
+                np.concatenate([np.asarray(p.stamps_ns, dtype=np.int64) for p in parts]),
+                [payload for p in parts for payload in p.payloads],
+            )
+            for topic, parts in merged.items()
         ]
