@@ -1,0 +1,115 @@
+"""Every shipped scenario still generates the same bits as before the refactor (issue 13).
+
+``tools/compare_generate.py --base 7249607 --duration-cap 30`` generates each scenario twice,
+with the package of commit 7249607 (from ``git archive``) and with the working tree, and
+compares the bags message by message; it must print "identical" for every scenario. Needs the
+git history (skipped in a shallow clone or a source tree without it). Plus fast unit tests
+that the comparison itself detects a difference.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+TOOL = REPO / "tools" / "compare_generate.py"
+BASE = "7249607"
+DURATION_CAP_S = "30"
+SCENARIOS = sorted((REPO / "config" / "scenarios").glob("*.yaml"))
+
+
+def _compare_generate():
+    spec = importlib.util.spec_from_file_location("compare_generate", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return module
+
+
+def _base_unavailable() -> str | None:
+    """Why commit ``BASE`` cannot be archived here (None: it can)."""
+    if shutil.which("git") is None:
+        return "git is not installed"
+    inside = subprocess.run(
+        ["git", "-C", str(REPO), "rev-parse", "--is-inside-work-tree"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    if inside.returncode != 0 or inside.stdout.strip() != "true":
+        return f"{REPO} is not a git work tree (no history to take commit {BASE} from)"
+    found = subprocess.run(
+        ["git", "-C", str(REPO), "cat-file", "-e", f"{BASE}^{{commit}}"], capture_output=True
+    )
+    if found.returncode != 0:
+        shallow = subprocess.run(
+            ["git", "-C", str(REPO), "rev-parse", "--is-shallow-repository"],
+            capture_output=True, text=True,
+        ).stdout.strip()  # fmt: skip
+        why = "a shallow clone" if shallow == "true" else "a history without it"
+        return f"commit {BASE} (the pre-refactor base) is not available: {why}"
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+def test_generate_is_bit_identical_to_the_base(scenario: Path) -> None:
+    why = _base_unavailable()
+    if why:
+        pytest.skip(why)
+    proc = subprocess.run(
+        [sys.executable, str(TOOL), "--base", BASE, "--duration-cap", DURATION_CAP_S,
+         str(scenario)],
+        cwd=REPO, capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    out = proc.stdout + proc.stderr
+    assert f"{scenario.stem}: identical (" in proc.stdout, out
+    assert proc.returncode == 0, out
+
+
+# --- the comparison itself ---------------------------------------------------------------
+
+
+def _write_bag(path: Path, values: list[float], topic: str = "/v") -> Path:
+    """A rosbag2 (mcap) bag with one Vector3Stamped per value (x = the value)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    Header = store.types["std_msgs/msg/Header"]
+    Time = store.types["builtin_interfaces/msg/Time"]
+    Vector3 = store.types["geometry_msgs/msg/Vector3"]
+    Stamped = store.types["geometry_msgs/msg/Vector3Stamped"]
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(topic, Stamped.__msgtype__, typestore=store)
+        for i, x in enumerate(values):
+            msg = Stamped(Header(Time(sec=i, nanosec=0), "map"), Vector3(x=x, y=2.0, z=-0.0))
+            writer.write(conn, i * 10**9, store.serialize_cdr(msg, Stamped.__msgtype__))
+    return path
+
+
+def test_compare_bags_reports_no_problem_for_equal_bags(tmp_path: Path) -> None:
+    tool = _compare_generate()
+    a = _write_bag(tmp_path / "a", [0.1, 0.2, 0.3])
+    b = _write_bag(tmp_path / "b", [0.1, 0.2, 0.3])
+    assert tool.compare_bags(a, b) == []
+
+
+def test_compare_bags_detects_one_float(tmp_path: Path) -> None:
+    tool = _compare_generate()
+    a = _write_bag(tmp_path / "a", [0.1, 0.2, 0.3])
+    b = _write_bag(tmp_path / "b", [0.1, float.fromhex("0x1.999999999999bp-3"), 0.3])  # 1 ulp
+    assert float.fromhex("0x1.999999999999bp-3") != 0.2
+    problems = tool.compare_bags(a, b)
+    assert problems == ["/v[1].vector.x: 0.2 != 0.20000000000000004"]
+
+
+def test_compare_bags_detects_counts_and_topics(tmp_path: Path) -> None:
+    tool = _compare_generate()
+    a = _write_bag(tmp_path / "a", [0.1, 0.2, 0.3])
+    assert tool.compare_bags(a, _write_bag(tmp_path / "b", [0.1, 0.2])) == ["/v: 3 != 2 messages"]
+    problems = tool.compare_bags(a, _write_bag(tmp_path / "c", [0.1, 0.2, 0.3], topic="/w"))
+    assert problems and problems[0].startswith("topics differ"), problems
