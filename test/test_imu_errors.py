@@ -1,4 +1,4 @@
-"""IMU error model (strapdown_ros.core.imu_errors) and Allan deviation (core.allan).
+"""IMU error model (core.imu_errors), its settings (config.imu_errors), Allan deviation.
 
 Acceptance checks of issue 7:
 
@@ -17,20 +17,26 @@ discretizations against their Allan-variance theory, and the configuration valid
 from __future__ import annotations
 
 import math
+import typing
 
 import numpy as np
 import pytest
 
 from strapdown_ros.config import ScenarioError, parse_scenario
+from strapdown_ros.config.base import validate_section
+from strapdown_ros.config.imu_errors import (
+    IMU_ERROR_KEYS,
+    PRESETS,
+    SENSOR_KEYS,
+    ImuErrorsSpec,
+)
 from strapdown_ros.core import allan
 from strapdown_ros.core.imu_errors import (
     G0,
-    IMU_ERROR_KEYS,
     NORMALS_PER_SAMPLE,
-    PRESETS,
     ImuErrorModel,
-    ImuErrorsError,
-    parse_imu_errors,
+    ImuErrorParameters,
+    SensorErrors,
 )
 
 DEG = math.pi / 180.0
@@ -39,6 +45,16 @@ DPSH = DEG / 60.0  # deg/√h in rad/√s
 MG = G0 * 1e-3
 
 T = 0.01  # 100 Hz
+
+
+def _spec(section) -> ImuErrorsSpec:
+    """An ``imu_errors`` section validated as in a scenario (errors name ``imu_errors.<key>``)."""
+    return validate_section(ImuErrorsSpec, section, "imu_errors")
+
+
+def parse_imu_errors(section) -> ImuErrorParameters:
+    """The model parameters (SI) of an ``imu_errors`` section."""
+    return _spec(section).parameters()
 
 
 def _static(n: int, rate=(1e-5, -2e-5, 5e-5), force=(0.0, 0.0, -G0)) -> tuple:
@@ -411,38 +427,90 @@ def test_perfect_imu_is_identity():
 
 
 def test_presets_are_complete_and_ordered_by_grade():
-    sensor_keys = set(IMU_ERROR_KEYS) - {"preset", "seed", "input_topic", "output_topic"}
+    assert set(IMU_ERROR_KEYS) - set(SENSOR_KEYS) == {
+        "preset",
+        "seed",
+        "input_topic",
+        "output_topic",
+    }
+    assert set(IMU_ERROR_KEYS) == set(ImuErrorsSpec.model_fields)
+    preset_field = ImuErrorsSpec.model_fields["preset"].annotation
+    assert set(typing.get_args(typing.get_args(preset_field)[0])) == set(PRESETS)
     for name, values in PRESETS.items():
-        assert set(values) == sensor_keys, name
-        parse_imu_errors({"preset": name})
+        assert set(values) == set(SENSOR_KEYS), name
+        spec = _spec({"preset": name})
+        for key in SENSOR_KEYS:  # every sensor key filled in from the preset
+            assert getattr(spec, key) is not None, (name, key)
     order = ["consumer_mems", "industrial", "tactical", "navigation"]
     for key in ("gyro_bias_instability_dph", "gyro_arw_dpsh", "accel_turn_on_bias_sigma_mg"):
         values = [PRESETS[p][key] for p in order]
         assert values == sorted(values, reverse=True), key
 
 
+def test_defaults_are_a_perfect_imu():
+    spec = _spec(None)
+    assert spec == _spec({}) and spec.preset is None and spec.seed == 0
+    assert spec.input_topic is None and spec.output_topic is None
+    assert all(getattr(spec, key) is None for key in SENSOR_KEYS)
+    p, zero = spec.parameters(), SensorErrors.zero()
+    for triad in (p.gyro, p.accel):
+        for name in zero.__dataclass_fields__:
+            assert np.array_equal(getattr(triad, name), getattr(zero, name)), name
+    assert p.seed == 0
+    perfect = ImuErrorParameters.perfect()
+    da, dv = _manoeuvre(20)
+    for params in (p, perfect):
+        g, a = ImuErrorModel(params, T).apply(da, dv)
+        assert g.tobytes() == da.tobytes() and a.tobytes() == dv.tobytes()
+
+
 def test_preset_override_and_units():
-    p = parse_imu_errors({"preset": "tactical", "gyro_arw_dpsh": [0.2, 0.3, 0.4], "seed": 5})
+    spec = _spec({"preset": "tactical", "gyro_arw_dpsh": [0.2, 0.3, 0.4], "seed": 5})
+    assert spec.preset == "tactical" and spec.seed == 5
+    assert spec.gyro_arw_dpsh == (0.2, 0.3, 0.4)
+    assert spec.accel_vrw_mpsph == (0.03,) * 3  # from the preset
+    p = spec.parameters()
     np.testing.assert_allclose(p.gyro.white, np.array([0.2, 0.3, 0.4]) * DPSH)
     np.testing.assert_allclose(p.accel.white, PRESETS["tactical"]["accel_vrw_mpsph"] / 60.0)
     np.testing.assert_allclose(p.gyro.range, 1000.0 * DEG)
     np.testing.assert_allclose(p.accel.turn_on_bias_sigma, 1.0 * MG)
-    assert p.seed == 5 and p.preset == "tactical"
+    assert p.seed == 5
+    # a key given as null keeps the preset's value
+    assert (
+        _spec({"preset": "tactical", "gyro_correlation_time_s": None}).gyro_correlation_time_s
+        == (300.0,) * 3
+    )
     q = parse_imu_errors({"accel_misalignment_sigma_mrad": 2.0, "gyro_g_sensitivity_dphpg": 3.0})
     np.testing.assert_allclose(q.accel.misalignment_sigma, 2e-3 * (1 - np.eye(3)))
     np.testing.assert_allclose(q.gyro.g_sensitivity, np.eye(3) * 3.0 * DPH / G0)
 
 
+def test_matrix_forms():
+    six = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]  # [xy, xz, yx, yz, zx, zy]
+    full = ((0.0, 1.0, 2.0), (3.0, 0.0, 4.0), (5.0, 6.0, 0.0))
+    assert _spec({"gyro_misalignment_mrad": six}).gyro_misalignment_mrad == full
+    assert _spec({"accel_misalignment_mrad": [list(r) for r in full]}).accel_misalignment_mrad == (
+        full
+    )
+    g = _spec({"gyro_g_sensitivity_dphpg": [1, 2, 3]}).gyro_g_sensitivity_dphpg
+    assert g == ((1.0, 0.0, 0.0), (0.0, 2.0, 0.0), (0.0, 0.0, 3.0))
+    p = parse_imu_errors({"gyro_misalignment_mrad": six, "accel_bias_mg": [1, -2, 3]})
+    np.testing.assert_array_equal(p.gyro.misalignment, np.array(full) * 1e-3)
+    np.testing.assert_array_equal(p.accel.bias, np.array([1.0, -2.0, 3.0]) * MG)
+
+
 @pytest.mark.parametrize(
     ("section", "key", "problem"),
     [
-        ({"gyro_bias": 1.0}, "imu_errors.gyro_bias", "unknown key"),
+        ({"gyro_bias": 1.0}, "imu_errors.gyro_bias", "unknown key (did you mean 'gyro_bias_dph'"),
         ({"preset": "space"}, "imu_errors.preset", "must be one of"),
-        ({"seed": -1}, "imu_errors.seed", "integer >= 0"),
+        ({"seed": -1}, "imu_errors.seed", "must be an integer >= 0, got -1"),
         ({"seed": 1.5}, "imu_errors.seed", "integer >= 0"),
-        ({"gyro_arw_dpsh": -0.1}, "imu_errors.gyro_arw_dpsh", ">= 0"),
+        ({"seed": True}, "imu_errors.seed", "integer >= 0"),
+        ({"gyro_arw_dpsh": -0.1}, "imu_errors.gyro_arw_dpsh", "must be >= 0, got -0.1"),
         ({"gyro_arw_dpsh": [0.1, 0.2]}, "imu_errors.gyro_arw_dpsh", "list of 3"),
         ({"gyro_arw_dpsh": float("nan")}, "imu_errors.gyro_arw_dpsh", "finite"),
+        ({"gyro_arw_dpsh": [1, 2, float("inf")]}, "imu_errors.gyro_arw_dpsh[2]", "finite"),
         ({"accel_bias_mg": [1, True, 2]}, "imu_errors.accel_bias_mg[1]", "number"),
         ({"accel_bias_mg": "1 mg"}, "imu_errors.accel_bias_mg", "number"),
         ({"gyro_misalignment_mrad": 0.1}, "imu_errors.gyro_misalignment_mrad", "6 values"),
@@ -451,30 +519,48 @@ def test_preset_override_and_units():
             "imu_errors.gyro_misalignment_mrad",
             "diagonal",
         ),
+        (
+            {"accel_misalignment_sigma_mrad": [0.1, -0.1, 0, 0, 0, 0]},
+            "imu_errors.accel_misalignment_sigma_mrad",
+            ">= 0",
+        ),
         ({"gyro_correlation_time_s": 0}, "imu_errors.gyro_correlation_time_s", "> 0"),
         (
             {"accel_bias_instability_mg": 0.1},
             "imu_errors.accel_correlation_time_s",
-            "required",
+            "is required when accel_bias_instability is > 0",
+        ),
+        (
+            {"preset": "industrial", "gyro_correlation_time_s": -1},
+            "imu_errors.gyro_correlation_time_s",
+            "> 0",
         ),
         ({"gyro_quantum_rad": -1e-6}, "imu_errors.gyro_quantum_rad", ">= 0"),
+        ({"accel_range_g": [1, -1, 1]}, "imu_errors.accel_range_g", ">= 0"),
         ({"gyro_g_sensitivity_dphpg": [1, 2]}, "imu_errors.gyro_g_sensitivity_dphpg", "3x3"),
+        (
+            {"gyro_g_sensitivity_dphpg": [[1, 2], [3]]},
+            "imu_errors.gyro_g_sensitivity_dphpg",
+            "ragged",
+        ),
         ({"output_topic": "imu"}, "imu_errors.output_topic", "absolute topic"),
+        ({"input_topic": 5}, "imu_errors.input_topic", "absolute topic"),
     ],
 )
 def test_invalid_settings_name_the_key(section, key, problem):
-    with pytest.raises(ImuErrorsError) as info:
-        parse_imu_errors(section)
+    with pytest.raises(ScenarioError) as info:
+        _spec(section)
     assert info.value.key == key and problem in info.value.problem, str(info.value)
 
 
-def _scenario(imu_errors) -> dict:
+def _scenario(imu_errors, **sections) -> dict:
     return {
         "rate_hz": 100,
         "duration_s": 1.0,
         "initial": {"latitude_deg": 45.0, "longitude_deg": 7.0},
         "trajectory": {"kind": "segments", "segments": [{"duration_s": 1.0}]},
         "imu_errors": imu_errors,
+        **sections,
     }
 
 
@@ -482,8 +568,40 @@ def test_scenario_rejects_bad_imu_errors_at_load():
     with pytest.raises(ScenarioError) as info:
         parse_scenario(_scenario({"preset": "tactical", "accel_vrw_mpsph": [1, 2, -3]}))
     assert info.value.key == "imu_errors.accel_vrw_mpsph", str(info.value)
+    assert str(info.value) == "imu_errors.accel_vrw_mpsph: must be >= 0, got [1, 2, -3]"
     with pytest.raises(ScenarioError) as info:
         parse_scenario(_scenario([1, 2]))
     assert info.value.key == "imu_errors"
-    ok = parse_scenario(_scenario({"preset": "industrial", "seed": 3}))
-    assert ok.imu_errors == {"preset": "industrial", "seed": 3}
+    ok = parse_scenario(
+        _scenario({"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"})
+    )
+    assert isinstance(ok.imu_errors, ImuErrorsSpec)
+    assert ok.imu_errors == _spec(
+        {"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"}
+    )
+    assert parse_scenario(_scenario(None)).imu_errors is None
+
+
+def test_scenario_topic_rules_name_the_key():
+    """input_topic: an ideal IMU topic the scenario generates; output_topic: no other stream's."""
+    variation = {"variation": {}}
+    with pytest.raises(ScenarioError) as info:  # default /variation/imu, no variation section
+        parse_scenario(_scenario({"preset": "navigation"}))
+    assert info.value.key == "imu_errors.input_topic"
+    assert info.value.problem == (
+        "/variation/imu is not an ideal IMU topic of this scenario (generated: /reference/imu)"
+    )
+    with pytest.raises(ScenarioError, match=r"^imu_errors\.input_topic: /variation/imu_measured"):
+        parse_scenario(_scenario({"input_topic": "/variation/imu_measured"}, **variation))
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(_scenario({"output_topic": "/variation/odom"}, **variation))
+    assert str(info.value) == "imu_errors.output_topic: /variation/odom is another stream's topic"
+    ok = parse_scenario(_scenario({"output_topic": "/measured"}, **variation))
+    assert ok.imu_errors.topics(ok.recording.topics) == ("/variation/imu", "/measured")
+    for topic in ("/reference/imu", "/variation/imu", "/variation/reference/imu"):
+        parse_scenario(_scenario({"input_topic": topic}, **variation))
+    renamed = {"recording": {"topics": {"variation_imu": "/v/imu"}}}
+    with pytest.raises(ScenarioError, match=r"^imu_errors\.input_topic: /variation/imu is not"):
+        parse_scenario(_scenario({"input_topic": "/variation/imu"}, **variation, **renamed))
+    ok = parse_scenario(_scenario({}, **variation, **renamed))
+    assert ok.imu_errors.topics(ok.recording.topics) == ("/v/imu", "/variation/imu_measured")

@@ -36,7 +36,7 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import ScenarioError, load_scenario
-from strapdown_ros.core.imu_errors import ImuErrorModel, parse_imu_errors
+from strapdown_ros.core.imu_errors import ImuErrorModel
 from strapdown_ros.messages import imu_increments
 from strapdown_ros.stages.measurement import (
     MeasuredImuStream,
@@ -88,7 +88,7 @@ def offline(bag, scenario) -> list[bytes]:
     """The measured payloads of the whole ideal stream, by one call on all of it."""
     _, contents = bag
     ideal = contents[IN]
-    model = ImuErrorModel(parse_imu_errors(scenario.imu_errors), scenario.period_ns * 1e-9)
+    model = ImuErrorModel(scenario.imu_errors.parameters(), scenario.period_ns * 1e-9)
     return [bytes(p) for p in cdr.serialize(measured_imu_fields(ideal, model, scenario.period_ns))]
 
 
@@ -124,7 +124,7 @@ def test_measured_messages_follow_the_model_and_rep145(bag, scenario, offline):
     np.testing.assert_allclose(cov_a, np.broadcast_to(np.eye(3) * var_a, cov_a.shape), rtol=1e-12)
     # Minus the run's deterministic errors (bias, S + M, g-sensitivity), computed here in FRD
     # from the realized constants, the rest is white noise of the published variance.
-    model = ImuErrorModel(parse_imu_errors(scenario.imu_errors), T)
+    model = ImuErrorModel(scenario.imu_errors.parameters(), T)
     params = model.params
     ideal_inc = imu_increments(ideal, scenario.period_ns)
     meas_inc = imu_increments(measured, scenario.period_ns)
@@ -202,19 +202,18 @@ def test_stream_restart_offgrid_and_late_start(bag, scenario, offline):
     assert stream.on_payload(b"\x00\x01\x00\x00garbage") is None and "decode" in error[-1]
 
 
-def test_generate_checks_the_input_topic():
-    """``generate`` needs an ideal IMU topic the scenario produces (named in the error)."""
-    no_variation = load_scenario(SCENARIO, ["variation=null", "navigator=null"], DURATION_S)
+def test_the_scenario_checks_the_topics():
+    """The input must be an ideal IMU topic the scenario produces (named in the error), checked
+    when the scenario loads (``validate``, ``generate`` and the node alike)."""
     with pytest.raises(ScenarioError) as info:
-        generate_measured_stream(no_variation)
+        load_scenario(SCENARIO, ["variation=null", "navigator=null"], DURATION_S)
     assert info.value.key == "imu_errors.input_topic" and "/reference/imu" in info.value.problem
-    on_reference = load_scenario(
-        SCENARIO,
-        ["variation=null", "navigator=null", "imu_errors={preset: navigation}"],
-        DURATION_S,
-    )
     with pytest.raises(ScenarioError, match="imu_errors.input_topic"):
-        generate_measured_stream(on_reference)  # default input /variation/imu: not generated
+        load_scenario(  # default input /variation/imu: not generated
+            SCENARIO,
+            ["variation=null", "navigator=null", "imu_errors={preset: navigation}"],
+            DURATION_S,
+        )
     ok = load_scenario(
         SCENARIO,
         ["variation=null", "navigator=null", "imu_errors={input_topic: /reference/imu}"],
@@ -223,9 +222,8 @@ def test_generate_checks_the_input_topic():
     stream = generate_measured_stream(ok)
     assert stream is not None and stream.input_topic == "/reference/imu"
     assert stream.output_topic == "/variation/imu_measured"
-    clash = load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
     with pytest.raises(ScenarioError, match="imu_errors.output_topic"):
-        generate_measured_stream(clash)
+        load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
     assert generate_measured_stream(load_scenario(SCENARIO, ["imu_errors=null"])) is None
 
 
@@ -367,6 +365,10 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
             r"invalid scenario: imu_errors\.gyro_arw_dpsh: must be a number or a list of 3",
         ),
         (
+            [f"scenario:={SCENARIO}", "overrides:=['variation=null', 'navigator=null']"],
+            r"invalid scenario: imu_errors\.input_topic: /variation/imu is not an ideal IMU topic",
+        ),
+        (
             [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", f"output_topic:={IN}"],
             r"parameter 'output_topic': equals the input topic",
         ),
@@ -379,7 +381,7 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
             r"parameter 'executor': must be one of: events, single_threaded",
         ),
     ],
-    ids=["missing", "no-imu-errors", "seed", "shape", "same-topic", "qos", "executor"],
+    ids=["missing", "no-imu-errors", "seed", "shape", "no-input", "same-topic", "qos", "executor"],
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")

@@ -30,6 +30,7 @@ from strapdown_ros.config.base import (
     Vector3,
     validate_section,
 )
+from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
@@ -152,7 +153,7 @@ class Scenario(Model):
     trajectory: TrajectorySpec  # SECTION trajectory
     variation: VariationSpec | None = None  # SECTION variation
     navigator: NavigatorSpec | None = None  # SECTION navigator
-    imu_errors: dict[str, Any] | None = None  # SECTION imu_errors
+    imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -223,21 +224,10 @@ class Scenario(Model):
                 "not an integer number of nanoseconds",
             )
         check_trajectory(self)
-        _legacy_sections(self)
+        check_imu_errors(self)
         check_navigator(self)
         check_variation(self)
         return self
-
-
-def _legacy_sections(scenario: Scenario) -> None:
-    """Checks of the sections not yet typed (each moves into its section model)."""
-    if scenario.imu_errors is not None:
-        from strapdown_ros.core.imu_errors import ImuErrorsError, parse_imu_errors
-
-        try:
-            parse_imu_errors(scenario.imu_errors)
-        except ImuErrorsError as exc:
-            raise ScenarioError(exc.key, exc.problem) from None
 
 
 # ---------------------------------------------------------------------------------------------

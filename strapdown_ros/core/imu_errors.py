@@ -1,63 +1,19 @@
 """IMU error model applied to ideal increments: biases, scale factors, noise, quantization.
 
-Increments in, increments out: the ideal ``Δα_m`` (rad) and ``Δv_m`` (m/s) of cycle m over
-``(t_{m-1}, t_m]`` in body FRD axes (:class:`~strapdown_ros.core.stream.Stream`) become the
-measured increments of an IMU whose sensor axes are the body FRD axes. Every error is defined on
-the rate ``ω`` (rad/s) or specific force ``f`` (m/s²) and integrated over the period ``T``:
-
-    ω̃ = ω + b + b_to + b_GM(t) + b_RW(t) + (S + M) ω + G f + n        (gyro)
-    f̃ = f + b + b_to + b_GM(t) + b_RW(t) + (S + M) f + n              (accelerometer)
-
-so that ``Δα̃ = Δα + (b + b_to) T + (S + M) Δα + G Δv + ∫(b_GM + b_RW + n) dt`` (and the same
-for ``Δṽ`` without ``G``), followed by saturation and quantization:
-
-* ``b`` fixed bias; ``b_to`` turn-on bias, a random constant drawn once per run (per seed);
-* ``S = diag(s)`` scale-factor errors, ``s`` fixed plus a random constant per run;
-* ``M`` misalignment / non-orthogonality, small angles with a zero diagonal: sensor axis i
-  senses ``M[i, j]`` of the rate along body axis j (fixed plus a random constant per run);
-* ``G`` gyro g-sensitivity (rad/s per m/s², 3×3), applied to the true specific force;
-* ``n`` white noise of PSD ``N²`` (angle / velocity random walk ``N``): its integral over a
-  period is ``N √T ξ`` (ξ standard normal);
-* ``b_GM`` first-order Gauss–Markov bias (bias instability): ``ḃ = -b/τ_c + w``, steady-state
-  deviation ``σ_GM``, discretized exactly (``φ = e^{-T/τ_c}``, joint Gaussian of the state at
-  the end of the period and of its integral over the period);
-* ``b_RW`` rate random walk ``ḃ = K w`` (exact joint discretization of the state and its
-  integral: variance ``K² T³/3`` of the integral, covariance ``K² T²/2`` with the state);
-* saturation: the mean rate of a period is clipped to ± the range (the increment to ± range T);
-* quantization of the increments with the residual carried to the next sample: the emitted
-  increment of cycle m is ``q (n_m - n_{m-1})`` with ``n_m = floor(C_m / q)`` and ``C_m`` the
-  running sum of the (saturated) increments, so the emitted sum over any window differs from
-  the sum of the quantizer's inputs by less than one quantum ``q``.
-
-**Bias instability.** A configured bias instability ``B`` is the value the standard Allan
-reading returns, ``B = σ_min / 0.664`` (IEEE Std 952): the Gauss–Markov deviation is
-``σ_GM = 0.664 B / 0.6174``, which puts the peak of its Allan deviation (at
-``τ ≈ 1.89 τ_c``) at ``0.664 B`` (:mod:`strapdown_ros.core.allan`).
-
-**Randomness and chunk invariance.** One ``numpy.random.Generator(PCG64(seed))`` per model.
-At construction it draws a (2, 15) block of standard normals (per sensor: turn-on bias 3,
-scale factor 3, misalignment 6, initial Gauss–Markov state 3; gyro row first); then each cycle
-consumes one row of :data:`NORMALS_PER_SAMPLE` = 30 standard normals (per sensor: white 3,
-Gauss–Markov 3 + 3, random walk 3 + 3; gyro columns first) whatever the parameters, so a
-parameter set to zero does not change the noise of the others. All per-cycle arithmetic is
-element-wise or a sequential accumulation, so applying the model to the cycles in chunks of any
-sizes, with the state carried by the :class:`ImuErrorModel` object, gives bit-identical results
-to applying it to all of them at once. The random-walk state starts at 0, the Gauss–Markov
-state is drawn from its stationary distribution, the quantizer starts with a zero residual.
-
-**Configuration** (:func:`parse_imu_errors`, the ``imu_errors`` section of a scenario): keys
-carry their units; per-axis values are a scalar (all axes) or a list of 3 (FRD x, y, z);
-misalignments are 6 values ``[xy, xz, yx, yz, zx, zy]`` (``M[i, j]``) or a 3×3 matrix with zero
-diagonal. A ``preset`` (:data:`PRESETS`) gives every key a value and any key given next to it
-overrides the preset's. See ``docs/scenarios.md`` and ``docs/theory/imu_errors.md``.
+The ideal ``Δα`` (rad) and ``Δv`` (m/s) of consecutive cycles in body FRD axes become the
+measured increments of an IMU whose sensor axes are the body axes (fixed, turn-on and
+Gauss–Markov biases, rate random walk, scale factors, misalignments, g-sensitivity, white
+noise, saturation, quantization with the residual carried). The model takes SI parameters
+(:class:`ImuErrorParameters`; built from a scenario's ``imu_errors`` section by
+``strapdown_ros.config.imu_errors.ImuErrorsSpec.parameters``); applied in chunks of any sizes it
+gives the same bits as applied at once. Equations, discretizations, random-number layout:
+docs/theory/imu_errors.md.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -67,27 +23,17 @@ from strapdown_ros.core.allan import BIAS_INSTABILITY_FACTOR, GAUSS_MARKOV_PEAK
 
 __all__ = [
     "G0",
-    "IMU_ERROR_KEYS",
     "NORMALS_PER_SAMPLE",
-    "PRESETS",
-    "PRESET_SOURCES",
     "ImuErrorModel",
     "ImuErrorParameters",
-    "ImuErrorsError",
     "SensorErrors",
     "misalignment_matrix",
-    "parse_imu_errors",
 ]
 
 Array = NDArray[np.float64]
 
 #: Standard gravity (m/s²), the ``g`` of the ``mg`` and ``_g`` units.
 G0 = 9.80665
-_DEG = math.pi / 180.0
-_DPH = _DEG / 3600.0  # deg/h -> rad/s
-_DPSH = _DEG / 60.0  # deg/√h -> rad/√s
-_MG = G0 * 1e-3  # mg -> m/s²
-_SQRT_H = 60.0  # √(3600 s)
 
 #: Standard normals drawn per cycle (per sensor: white 3, Gauss–Markov 3 + 3, random walk 3 + 3).
 NORMALS_PER_SAMPLE = 30
@@ -95,156 +41,6 @@ _UNIT_NORMALS = 15  # per sensor at construction: turn-on 3, scale factor 3, mis
 
 # Off-diagonal positions of the 6-value misalignment form [xy, xz, yx, yz, zx, zy].
 _OFF_DIAG = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
-
-# key -> (sensor, field, SI factor, kind, sign rule)
-#   kind: "axes" (scalar or 3), "misalignment" (6 or 3x3 zero diagonal), "sigma6" (scalar, 6 or
-#   3x3 zero diagonal), "matrix" (scalar, 3 or 3x3); sign rule: "any", "nonneg", "positive".
-_SENSOR_KEYS: dict[str, tuple[str, str, float, str, str]] = {
-    "gyro_bias_dph": ("gyro", "bias", _DPH, "axes", "any"),
-    "gyro_turn_on_bias_sigma_dph": ("gyro", "turn_on_bias_sigma", _DPH, "axes", "nonneg"),
-    "gyro_bias_instability_dph": ("gyro", "bias_instability", _DPH, "axes", "nonneg"),
-    "gyro_correlation_time_s": ("gyro", "correlation_time_s", 1.0, "axes", "positive"),
-    "gyro_arw_dpsh": ("gyro", "white", _DPSH, "axes", "nonneg"),
-    "gyro_rrw_dphpsh": ("gyro", "random_walk", _DPH / _SQRT_H, "axes", "nonneg"),
-    "gyro_scale_factor_ppm": ("gyro", "scale_factor", 1e-6, "axes", "any"),
-    "gyro_scale_factor_sigma_ppm": ("gyro", "scale_factor_sigma", 1e-6, "axes", "nonneg"),
-    "gyro_misalignment_mrad": ("gyro", "misalignment", 1e-3, "misalignment", "any"),
-    "gyro_misalignment_sigma_mrad": ("gyro", "misalignment_sigma", 1e-3, "sigma6", "nonneg"),
-    "gyro_quantum_rad": ("gyro", "quantum", 1.0, "axes", "nonneg"),
-    "gyro_range_dps": ("gyro", "range", _DEG, "axes", "nonneg"),
-    "gyro_g_sensitivity_dphpg": ("gyro", "g_sensitivity", _DPH / G0, "matrix", "any"),
-    "accel_bias_mg": ("accel", "bias", _MG, "axes", "any"),
-    "accel_turn_on_bias_sigma_mg": ("accel", "turn_on_bias_sigma", _MG, "axes", "nonneg"),
-    "accel_bias_instability_mg": ("accel", "bias_instability", _MG, "axes", "nonneg"),
-    "accel_correlation_time_s": ("accel", "correlation_time_s", 1.0, "axes", "positive"),
-    "accel_vrw_mpsph": ("accel", "white", 1.0 / _SQRT_H, "axes", "nonneg"),
-    "accel_rrw_mgpsh": ("accel", "random_walk", _MG / _SQRT_H, "axes", "nonneg"),
-    "accel_scale_factor_ppm": ("accel", "scale_factor", 1e-6, "axes", "any"),
-    "accel_scale_factor_sigma_ppm": ("accel", "scale_factor_sigma", 1e-6, "axes", "nonneg"),
-    "accel_misalignment_mrad": ("accel", "misalignment", 1e-3, "misalignment", "any"),
-    "accel_misalignment_sigma_mrad": ("accel", "misalignment_sigma", 1e-3, "sigma6", "nonneg"),
-    "accel_quantum_mps": ("accel", "quantum", 1.0, "axes", "nonneg"),
-    "accel_range_g": ("accel", "range", G0, "axes", "nonneg"),
-}
-_OTHER_KEYS = ("preset", "seed", "input_topic", "output_topic")
-#: Every key accepted in an ``imu_errors`` section.
-IMU_ERROR_KEYS: tuple[str, ...] = _OTHER_KEYS + tuple(_SENSOR_KEYS)
-
-# Presets, in the units of the keys. Typical values of each grade, not a particular product:
-# see PRESET_SOURCES and docs/theory/imu_errors.md. Random-per-unit terms (turn-on bias, scale
-# factor, misalignment) are given as 1σ; fixed terms are zero except g-sensitivity.
-_COMMON_ZERO = {
-    "gyro_bias_dph": 0.0,
-    "gyro_rrw_dphpsh": 0.0,
-    "gyro_scale_factor_ppm": 0.0,
-    "gyro_misalignment_mrad": [0.0] * 6,
-    "accel_bias_mg": 0.0,
-    "accel_rrw_mgpsh": 0.0,
-    "accel_scale_factor_ppm": 0.0,
-    "accel_misalignment_mrad": [0.0] * 6,
-}
-#: Error presets by grade (values in the units of the keys).
-PRESETS: dict[str, dict[str, Any]] = {
-    "consumer_mems": {
-        **_COMMON_ZERO,
-        "gyro_turn_on_bias_sigma_dph": 1800.0,  # 0.5 deg/s zero-rate offset
-        "gyro_bias_instability_dph": 10.0,
-        "gyro_correlation_time_s": 100.0,
-        "gyro_arw_dpsh": 0.5,  # ~0.008 deg/s/√Hz noise density
-        "gyro_scale_factor_sigma_ppm": 5000.0,
-        "gyro_misalignment_sigma_mrad": 5.0,
-        "gyro_g_sensitivity_dphpg": 200.0,  # ~0.06 deg/s/g linear-acceleration effect
-        "gyro_quantum_rad": 1e-5,
-        "gyro_range_dps": 2000.0,
-        "accel_turn_on_bias_sigma_mg": 30.0,
-        "accel_bias_instability_mg": 0.1,
-        "accel_correlation_time_s": 100.0,
-        "accel_vrw_mpsph": 0.1,  # ~170 µg/√Hz
-        "accel_scale_factor_sigma_ppm": 10000.0,
-        "accel_misalignment_sigma_mrad": 5.0,
-        "accel_quantum_mps": 5e-5,
-        "accel_range_g": 16.0,
-    },
-    "industrial": {
-        **_COMMON_ZERO,
-        "gyro_turn_on_bias_sigma_dph": 20.0,
-        "gyro_bias_instability_dph": 5.0,
-        "gyro_correlation_time_s": 100.0,
-        "gyro_arw_dpsh": 0.2,
-        "gyro_scale_factor_sigma_ppm": 1000.0,
-        "gyro_misalignment_sigma_mrad": 1.0,
-        "gyro_g_sensitivity_dphpg": 36.0,  # 0.01 deg/s/g
-        "gyro_quantum_rad": 1e-6,
-        "gyro_range_dps": 500.0,
-        "accel_turn_on_bias_sigma_mg": 2.0,
-        "accel_bias_instability_mg": 0.02,
-        "accel_correlation_time_s": 100.0,
-        "accel_vrw_mpsph": 0.04,
-        "accel_scale_factor_sigma_ppm": 1000.0,
-        "accel_misalignment_sigma_mrad": 1.0,
-        "accel_quantum_mps": 1e-5,
-        "accel_range_g": 8.0,
-    },
-    "tactical": {
-        **_COMMON_ZERO,
-        "gyro_turn_on_bias_sigma_dph": 1.0,
-        "gyro_bias_instability_dph": 0.5,
-        "gyro_correlation_time_s": 300.0,
-        "gyro_arw_dpsh": 0.1,
-        "gyro_scale_factor_sigma_ppm": 150.0,
-        "gyro_misalignment_sigma_mrad": 0.5,
-        "gyro_g_sensitivity_dphpg": 1.0,
-        "gyro_quantum_rad": 1e-6,
-        "gyro_range_dps": 1000.0,
-        "accel_turn_on_bias_sigma_mg": 1.0,
-        "accel_bias_instability_mg": 0.05,
-        "accel_correlation_time_s": 300.0,
-        "accel_vrw_mpsph": 0.03,
-        "accel_scale_factor_sigma_ppm": 300.0,
-        "accel_misalignment_sigma_mrad": 0.5,
-        "accel_quantum_mps": 1e-5,
-        "accel_range_g": 40.0,
-    },
-    "navigation": {
-        **_COMMON_ZERO,
-        "gyro_turn_on_bias_sigma_dph": 0.005,
-        "gyro_bias_instability_dph": 0.002,
-        "gyro_correlation_time_s": 3600.0,
-        "gyro_arw_dpsh": 0.002,
-        "gyro_scale_factor_sigma_ppm": 5.0,
-        "gyro_misalignment_sigma_mrad": 0.02,
-        "gyro_g_sensitivity_dphpg": 0.0,  # optical gyros
-        "gyro_quantum_rad": 1e-6,
-        "gyro_range_dps": 400.0,
-        "accel_turn_on_bias_sigma_mg": 0.03,
-        "accel_bias_instability_mg": 0.005,
-        "accel_correlation_time_s": 3600.0,
-        "accel_vrw_mpsph": 0.005,
-        "accel_scale_factor_sigma_ppm": 50.0,
-        "accel_misalignment_sigma_mrad": 0.02,
-        "accel_quantum_mps": 1e-6,
-        "accel_range_g": 25.0,
-    },
-}
-#: Where the preset figures come from (typical values; no preset describes a particular product).
-PRESET_SOURCES = (
-    "P. D. Groves, Principles of GNSS, Inertial, and Multisensor Integrated Navigation "
-    "Systems, 2nd ed., Artech House, 2013, ch. 4 (IMU grades; typical bias, scale-factor, "
-    "cross-coupling and noise ranges by grade); N. El-Sheimy, A. Youssef, 'Inertial sensors "
-    "technologies for navigation applications: state of the art and future trends', Satellite "
-    "Navigation 1:2, 2020, Table 1 (drift, random walk and accelerometer bias by grade); public "
-    "datasheets of representative consumer, industrial, tactical and navigation-grade parts. "
-    "Quantization and ranges are representative choices."
-)
-
-
-class ImuErrorsError(ValueError):
-    """An ``imu_errors`` setting is invalid; ``key`` is its dotted path."""
-
-    def __init__(self, key: str, problem: str) -> None:
-        self.key = key
-        self.problem = problem
-        super().__init__(f"{key}: {problem}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -307,44 +103,19 @@ class SensorErrors:
 
 @dataclass(frozen=True, eq=False)
 class ImuErrorParameters:
-    """Validated ``imu_errors`` settings: both triads in SI units, the seed, the topics.
+    """Parameters of one IMU run: both triads in SI units (FRD axes) and the random seed.
 
-    ``input_topic`` / ``output_topic`` are None when not given (the ROS layer chooses).
+    ``seed`` (>= 0) seeds the run's ``PCG64`` generator: the per-run constants and all noise.
     """
 
     gyro: SensorErrors
     accel: SensorErrors
     seed: int = 0
-    preset: str | None = None
-    input_topic: str | None = None
-    output_topic: str | None = None
 
-
-# ---------------------------------------------------------------------------------------------
-# Configuration parsing.
-
-
-def _number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ImuErrorsError(key, f"must be a number, got {type(value).__name__} {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ImuErrorsError(key, f"must be finite, got {value}")
-    return value
-
-
-def _numbers(value: Any, key: str) -> Array:
-    """A scalar, a list or a nested list of finite numbers as an array (shape kept)."""
-    if isinstance(value, list | tuple):
-        items = [
-            _numbers(v, f"{key}[{i}]") if isinstance(v, list | tuple) else _number(v, f"{key}[{i}]")
-            for i, v in enumerate(value)
-        ]
-        try:
-            return np.array(items, dtype=np.float64)
-        except ValueError:
-            raise ImuErrorsError(key, f"ragged nested list {value!r}") from None
-    return np.array(_number(value, key))
+    @classmethod
+    def perfect(cls, seed: int = 0) -> ImuErrorParameters:
+        """A perfect IMU (the measured increments are the ideal ones)."""
+        return cls(SensorErrors.zero(), SensorErrors.zero(), seed)
 
 
 def misalignment_matrix(values: ArrayLike) -> Array:
@@ -356,120 +127,6 @@ def misalignment_matrix(values: ArrayLike) -> Array:
     for k, (i, j) in enumerate(_OFF_DIAG):
         m[i, j] = v[k]
     return m
-
-
-def _shape(value: Any, key: str, kind: str, sign: str) -> Array:
-    a = _numbers(value, key)
-    if sign == "nonneg" and np.any(a < 0):
-        raise ImuErrorsError(key, f"must be >= 0, got {value!r}")
-    if sign == "positive" and np.any(a <= 0):
-        raise ImuErrorsError(key, f"must be > 0, got {value!r}")
-    if kind == "axes":
-        if a.shape == ():
-            return np.full(3, float(a))
-        if a.shape == (3,):
-            return a
-        raise ImuErrorsError(key, f"must be a number or a list of 3 numbers, got {value!r}")
-    if kind in ("misalignment", "sigma6"):
-        if a.shape == () and kind == "sigma6":
-            return misalignment_matrix(np.full(6, float(a)))
-        if a.shape == (6,):
-            return misalignment_matrix(a)
-        if a.shape == (3, 3):
-            if np.any(np.diag(a) != 0):
-                raise ImuErrorsError(
-                    key, "the diagonal of a 3x3 misalignment must be 0 (it is the scale factor)"
-                )
-            return a
-        scalar = "a number, " if kind == "sigma6" else ""
-        raise ImuErrorsError(
-            key,
-            f"must be {scalar}6 values [xy, xz, yx, yz, zx, zy] or a 3x3 matrix with zero "
-            f"diagonal, got {value!r}",
-        )
-    # "matrix": scalar or 3 values on the diagonal, or a full 3x3
-    if a.shape == ():
-        return np.diag(np.full(3, float(a)))
-    if a.shape == (3,):
-        return np.diag(a)
-    if a.shape == (3, 3):
-        return a
-    raise ImuErrorsError(key, f"must be a number, a list of 3 or a 3x3 matrix, got {value!r}")
-
-
-def parse_imu_errors(
-    section: Mapping[str, Any] | None, path: str = "imu_errors"
-) -> ImuErrorParameters:
-    """Validate an ``imu_errors`` section and convert it to SI units.
-
-    Parameters
-    ----------
-    section : mapping or None
-        The section (keys :data:`IMU_ERROR_KEYS`); None or empty: a perfect IMU.
-    path : str
-        Dotted path of the section, used in error messages.
-
-    Returns
-    -------
-    ImuErrorParameters
-        Both triads in SI units (rad/s, m/s², rad, s) in FRD sensor axes.
-
-    Raises
-    ------
-    ImuErrorsError
-        Naming the dotted key: unknown key or preset, wrong shape, negative sigma, NaN, ...
-    """
-    section = {} if section is None else section
-    if not isinstance(section, Mapping):
-        raise ImuErrorsError(path, f"must be a mapping, got {type(section).__name__}")
-    for key in section:
-        if key not in IMU_ERROR_KEYS:
-            raise ImuErrorsError(
-                f"{path}.{key}", f"unknown key; expected one of: {', '.join(IMU_ERROR_KEYS)}"
-            )
-    preset = section.get("preset")
-    if preset is not None and preset not in PRESETS:
-        raise ImuErrorsError(
-            f"{path}.preset", f"must be one of: {', '.join(PRESETS)}; got {preset!r}"
-        )
-    seed = section.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ImuErrorsError(f"{path}.seed", f"must be an integer >= 0, got {seed!r}")
-    topics = {}
-    for key in ("input_topic", "output_topic"):
-        value = section.get(key)
-        if value is not None and (
-            not isinstance(value, str) or not value.startswith("/") or " " in value
-        ):
-            raise ImuErrorsError(f"{path}.{key}", f"must be an absolute topic name, got {value!r}")
-        topics[key] = value
-    values = dict(PRESETS[preset]) if preset is not None else {}
-    values.update({k: v for k, v in section.items() if k in _SENSOR_KEYS and v is not None})
-    fields: dict[str, dict[str, Array]] = {"gyro": {}, "accel": {}}
-    for key, value in values.items():
-        sensor, name, factor, kind, sign = _SENSOR_KEYS[key]
-        full = f"{path}.{key}"
-        fields[sensor][name] = _shape(value, full, kind, sign) * factor
-    for sensor in ("gyro", "accel"):
-        f = fields[sensor]
-        if np.any(f.get("bias_instability", np.zeros(3)) > 0) and "correlation_time_s" not in f:
-            raise ImuErrorsError(
-                f"{path}.{sensor}_correlation_time_s",
-                f"is required when {sensor}_bias_instability is > 0",
-            )
-    return ImuErrorParameters(
-        gyro=_triad(fields["gyro"]),
-        accel=_triad(fields["accel"]),
-        seed=int(seed),
-        preset=preset,
-        input_topic=topics["input_topic"],
-        output_topic=topics["output_topic"],
-    )
-
-
-def _triad(values: dict[str, Array]) -> SensorErrors:
-    zero = SensorErrors.zero()
-    return SensorErrors(**{k: values.get(k, getattr(zero, k)) for k in zero.__dataclass_fields__})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -581,7 +238,7 @@ class ImuErrorModel:
     Parameters
     ----------
     params : ImuErrorParameters
-        Validated parameters (:func:`parse_imu_errors`).
+        The run's parameters (SI units, FRD axes).
     period_s : float
         Cycle period T (s) of the increments.
 

@@ -1,29 +1,10 @@
 """``imu_model_node``: the scenario's IMU error model, live (SPEC §4, issue 7).
 
-It subscribes raw to an ideal Imu topic (default ``/variation/imu``), decodes every payload
-with the project's CDR codec, feeds it to a
-:class:`~strapdown_ros.stages.measurement.MeasuredImuStream`
-— the object ``strapdown-sim generate`` feeds with the same messages — and publishes the
-serialized result raw on the measured topic (default ``/variation/imu_measured``). The model
-is applied message by message with its state carried (random generator, bias processes,
-quantization residual); applied in chunks it is bit-identical to the whole-stream application,
-so the published messages equal the bag's byte for byte.
-
-* **Gaps.** A missing cycle is logged (WARN, with the stamps) and the model is advanced over
-  it: later cycles keep the noise and bias processes of an uninterrupted run, but the
-  quantizer lacks the missing increments, so the quantized values may differ from the bag's by
-  one quantum from then on (two on the first message after the gap). An input starting after
-  cycle 1 is handled the same way.
-* **Order.** An older stamp (out of order or duplicate) is logged and dropped; cycle 1 after
-  later cycles means the input restarted, and the model restarts from its seed. A stamp off
-  the scenario's cycle grid is rejected (ERROR).
-
-Behaviour: docs/theory/imu_errors.md; the scenario section: docs/scenarios.md. Parameters:
-``scenario`` (required), ``overrides``, ``duration_s``, ``input_topic`` / ``output_topic``
-(default: the section's, else ``recording.topics``), ``qos_reliability``, ``qos_depth``,
-``exit_when_done`` (after the last cycle of the scenario's input stream), ``idle_timeout_s``,
-``wait_for_subscribers``, ``wait_timeout_s``, ``subscribers_per_topic``. Exit status: 0 done
-(or SIGINT/SIGTERM), 1 failure while running, 2 invalid parameter or scenario.
+A thin rclpy shell around :class:`~strapdown_ros.stages.measurement.MeasuredImuStream`, the
+object ``strapdown-sim generate`` feeds: raw ideal Imu payloads in (default ``/variation/imu``),
+in batches, serialized measured ones out (default ``/variation/imu_measured``), byte for byte the
+bag's. Gaps, order and restarts: the stage module. Parameters, exit status (0 done, 1 failure,
+2 invalid parameter or scenario): docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -31,7 +12,6 @@ from __future__ import annotations
 from typing import Any
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.config import Scenario
 from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._common import (
     ParameterError,
@@ -41,23 +21,14 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.stages.measurement import MeasuredImuStream, format_stamp, imu_model_topics
+from strapdown_ros.stages.measurement import (
+    MeasuredImuStream,
+    format_stamp,
+    imu_model_topics,
+    last_input_cycle,
+)
 
 NODE_NAME = "imu_model_node"
-
-
-def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
-    """Last cycle the scenario publishes on ``input_topic`` (None: not one of its IMU topics).
-
-    The reference IMU ends at cycle M, the variation streams at the last even cycle < M.
-    """
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-    key = next((k for k, v in scenario.recording.topics.items() if v == input_topic), None)
-    if key not in ("reference_imu", "variation_imu", "variation_reference_imu"):
-        return None
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    return cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
 
 
 class ImuModelNode(BatchedInputNode):
@@ -97,12 +68,12 @@ class ImuModelNode(BatchedInputNode):
             raise ParameterError("output_topic", str(exc)) from exc
         self._subscription = None
         self._started = False
-        params = self.stream.params
+        spec = self.stream.spec
         end = "" if self.last_cycle is None else f" up to cycle {self.last_cycle}"
         log.info(
             f"scenario {scenario.path} ({scenario.name}): IMU errors "
-            f"{'preset ' + params.preset if params.preset else 'without preset'}, seed "
-            f"{params.seed}, T = {scenario.period_ns} ns; input {self.input_topic}{end}; "
+            f"{'preset ' + spec.preset if spec.preset else 'without preset'}, seed "
+            f"{spec.seed}, T = {scenario.period_ns} ns; input {self.input_topic}{end}; "
             f"output {self.output_topic}"
         )
 

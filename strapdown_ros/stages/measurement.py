@@ -1,31 +1,21 @@
 """Measured IMU messages: the scenario's ``imu_errors`` model applied to an ideal Imu stream.
 
-The thin layer between :mod:`strapdown_ros.core.imu_errors` (the model, ROS-free) and the
-message world; ``strapdown-sim generate`` and ``imu_model_node`` both go through
-:class:`MeasuredImuStream`, so the bag and the live topic carry the same bytes.
+The one implementation of the measurement stage, between
+:mod:`strapdown_ros.core.imu_errors` (the model, ROS-free) and the message world:
+``strapdown-sim generate`` and ``imu_model_node`` both feed :class:`MeasuredImuStream`, so the
+bag and the live topic carry the same bytes.
 
-* **Input / output.** The ideal Imu topic ``imu_errors.input_topic`` (default
-  ``recording.topics.variation_imu``, ``/variation/imu``) becomes ``imu_errors.output_topic``
-  (default ``recording.topics.variation_imu_measured``, ``/variation/imu_measured``).
-* **Messages** (SPEC §2, §4). Increments are recovered as ``FRD(angular_velocity) T`` and
-  ``FRD(linear_acceleration) T`` with T the scenario's period, passed through the model and
-  published as ``FLU(Δα̃) / T``, ``FLU(Δṽ) / T`` with the input's stamp and ``frame_id``.
-  ``orientation`` is not provided (identity, ``orientation_covariance[0] = -1``).
-  ``angular_velocity_covariance`` and ``linear_acceleration_covariance`` are diagonal (FLU
-  axes), from :meth:`~strapdown_ros.core.imu_errors.ImuErrorModel.rate_noise_variance`: the
-  white part of one message's error (noise ``N²/T`` plus quantization ``q²/(6T²)``); the
-  slowly varying terms (biases, scale factors, misalignments) are cycle-to-cycle correlated and
-  left to the user's filter states.
-* **Cycles.** Message m of the input (``stamp = start_time + m T``) is cycle m of the model:
-  cycle 1 is the model's first sample, whatever arrives first. A stamp off the scenario's grid
-  is rejected (logged). A gap (missing cycles) is logged and the model is advanced over the
-  missing cycles (:meth:`~strapdown_ros.core.imu_errors.ImuErrorModel.skip`): the noise and the
-  bias processes of every later cycle are those of an uninterrupted run, while the quantizer's
-  running sum lacks the unknown increments of the missing cycles (so later quantized values can
-  differ from an uninterrupted run's by one quantum). An input that starts after cycle 1 is
-  treated the same way. An older stamp is logged and dropped (out of order, or a duplicate);
-  except cycle 1 after later cycles: the input restarted, and so does the model (from its seed,
-  a new run).
+* **Topics.** ``imu_errors.input_topic`` (default ``recording.topics.variation_imu``) becomes
+  ``imu_errors.output_topic`` (default ``recording.topics.variation_imu_measured``).
+* **Messages** (SPEC §2, §4). Increments ``FRD(angular_velocity) T``, ``FRD(linear_acceleration)
+  T`` go through the model and out as ``FLU(Δα̃) / T``, ``FLU(Δṽ) / T`` with the input's stamp
+  and ``frame_id``; no orientation (``orientation_covariance[0] = -1``); diagonal rate and
+  acceleration covariances from
+  :meth:`~strapdown_ros.core.imu_errors.ImuErrorModel.rate_noise_variance`.
+* **Cycles.** Message m (``stamp = start_time + m T``) is cycle m of the model. Off-grid stamps
+  are rejected, older ones dropped, missing cycles skipped
+  (:meth:`~strapdown_ros.core.imu_errors.ImuErrorModel.skip`), cycle 1 after later cycles
+  restarts the model from its seed; all logged. Details: docs/theory/imu_errors.md.
 """
 
 from __future__ import annotations
@@ -37,24 +27,22 @@ import numpy as np
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch
 from strapdown_ros.config import Scenario, ScenarioError
-from strapdown_ros.core.imu_errors import (
-    ImuErrorModel,
-    ImuErrorParameters,
-    ImuErrorsError,
-    parse_imu_errors,
-)
+from strapdown_ros.config.imu_errors import ImuErrorsSpec
+from strapdown_ros.core.imu_errors import ImuErrorModel
 from strapdown_ros.messages import (
     COVARIANCE_NOT_PROVIDED,
     ImuFields,
     imu_fields_from_increments,
     imu_increments,
 )
+from strapdown_ros.stages.reference import build_trajectory, output_cycles
 
 __all__ = [
     "MeasuredImuStream",
     "generate_measured_stream",
-    "imu_error_parameters",
+    "imu_errors_spec",
     "imu_model_topics",
+    "last_input_cycle",
     "measured_covariances",
     "measured_imu_fields",
 ]
@@ -66,53 +54,37 @@ def _ignore(_: str) -> None:
     return None
 
 
-def imu_error_parameters(scenario: Scenario) -> ImuErrorParameters:
-    """The validated ``imu_errors`` section (ScenarioError naming the key, or if missing)."""
+def imu_errors_spec(scenario: Scenario) -> ImuErrorsSpec:
+    """The scenario's ``imu_errors`` section (ScenarioError ``imu_errors`` if it has none)."""
     if scenario.imu_errors is None:
         raise ScenarioError("imu_errors", "missing: the scenario defines no IMU error model")
-    try:
-        return parse_imu_errors(scenario.imu_errors)
-    except ImuErrorsError as exc:
-        raise ScenarioError(exc.key, exc.problem) from None
+    return scenario.imu_errors
 
 
 def imu_model_topics(scenario: Scenario) -> tuple[str, str]:
     """``(input, output)`` topics of the model: the section's, else ``recording.topics``'."""
-    params = imu_error_parameters(scenario)
-    topics = scenario.recording.topics
-    return (
-        params.input_topic or topics["variation_imu"],
-        params.output_topic or topics["variation_imu_measured"],
-    )
+    return imu_errors_spec(scenario).topics(scenario.recording.topics)
 
 
 def generate_measured_stream(scenario: Scenario) -> MeasuredImuStream | None:
     """The :class:`MeasuredImuStream` of ``strapdown-sim generate`` (None without ``imu_errors``).
 
-    Raises ScenarioError (``imu_errors.input_topic``) when the input is not an ideal IMU topic
-    the scenario generates (the reference IMU, and the variation ones with a ``variation``).
+    Its topics were checked with the scenario (``imu_errors.input_topic`` is an ideal IMU topic
+    the scenario generates: :func:`strapdown_ros.config.imu_errors.check_imu_errors`).
     """
-    if scenario.imu_errors is None:
+    return None if scenario.imu_errors is None else MeasuredImuStream(scenario)
+
+
+def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
+    """Last cycle the scenario publishes on ``input_topic`` (None: not one of its IMU topics).
+
+    The reference IMU ends at cycle M, the variation streams at the last even cycle < M.
+    """
+    key = next((k for k, v in scenario.recording.topics.items() if v == input_topic), None)
+    if key not in ("reference_imu", "variation_imu", "variation_reference_imu"):
         return None
-    keys = ["reference_imu"]
-    if scenario.variation is not None:
-        keys += ["variation_imu", "variation_reference_imu"]
-    generated = [scenario.recording.topics[k] for k in keys]
-    stream = MeasuredImuStream(scenario)
-    if stream.input_topic not in generated:
-        raise ScenarioError(
-            "imu_errors.input_topic",
-            f"{stream.input_topic} is not an ideal IMU topic of this scenario "
-            f"(generated: {', '.join(generated)})",
-        )
-    if (
-        stream.output_topic in scenario.recording.topics.values()
-        and stream.output_topic != (scenario.recording.topics["variation_imu_measured"])
-    ):
-        raise ScenarioError(
-            "imu_errors.output_topic", f"{stream.output_topic} is another stream's topic"
-        )
-    return stream
+    cycles = output_cycles(scenario, build_trajectory(scenario))
+    return cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
 
 
 def measured_covariances(model: ImuErrorModel) -> tuple[np.ndarray, np.ndarray]:
@@ -177,6 +149,8 @@ class MeasuredImuStream:
 
     Attributes
     ----------
+    spec : ImuErrorsSpec
+        The scenario's ``imu_errors`` section.
     last_cycle : int
         Last cycle processed (0: none yet).
     published : int
@@ -195,8 +169,9 @@ class MeasuredImuStream:
         warn: Log = _ignore,
         error: Log = _ignore,
     ) -> None:
-        self.params = imu_error_parameters(scenario)
-        default_in, default_out = imu_model_topics(scenario)
+        self.spec = imu_errors_spec(scenario)
+        self.params = self.spec.parameters()
+        default_in, default_out = self.spec.topics(scenario.recording.topics)
         self.input_topic = input_topic or default_in
         self.output_topic = output_topic or default_out
         self.t0_ns = scenario.start_time_ns
