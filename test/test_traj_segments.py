@@ -1,7 +1,6 @@
 """The ``segments`` trajectory: smooth transitions, maneuver targets, consistency, validation."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -159,16 +158,11 @@ def test_velocity_is_derivative_of_position(mixed):
     assert np.abs(v_e).max() > 100.0  # the check is not vacuous
 
 
-def test_vectorized_evaluation_is_fast(mixed):
-    start = time.perf_counter()
-    build(INITIAL, MIXED)
-    assert time.perf_counter() - start < 0.25  # ≈ 0.01 s
+def test_vectorized_evaluation(mixed):
+    # How fast (was asserted here: build < 0.25 s, 120 000 times < 1 s): bench/bench_trajectory.py
     t = np.linspace(0.0, mixed.duration, 120_000)
-    start = time.perf_counter()
     lt = mixed.local_truth(t)
-    elapsed = time.perf_counter() - start
     assert lt.c_b_n.shape == (120_000, 3, 3)
-    assert elapsed < 1.0, elapsed
     # Same values one by one as vectorized.
     one = mixed.local_truth(t[[12345]])
     assert one.lat[0] == lt.lat[12345] and np.array_equal(one.c_b_n[0], lt.c_b_n[12345])
@@ -271,9 +265,7 @@ def test_path_derivative_is_the_geodetic_rate(case):
     """d/dt of the returned latitude/longitude equals the rates at off-node times (< 1e-11 m/s)."""
     traj = build(*case)
     first = traj.local_truth(np.array([0.0]))
-    start = time.perf_counter()
     path = LatLonPath(piece_breaks(traj), first.lat[0], first.lon[0], velocity_of(traj))
-    assert time.perf_counter() - start < 0.5
     t = np.random.default_rng(3).uniform(0.0, traj.duration, 5000)
     lat, lon = path(t)
     d_lat, d_lon = path.derivative(t)

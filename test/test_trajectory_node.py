@@ -191,12 +191,14 @@ def test_paced_wall_time_run(bag, procs, ros_env, tmp_path):
     )
     assert recording["topics"]["/clock"] == []
     _compare(recording, bag, ["/reference/imu", "/reference/odom", "/reference/fix"])
-    # 600 IMU messages 5 ms apart: first to last arrival spans 2.995 s of wall time.
+    # 600 IMU messages 5 ms apart: first to last arrival spans 2.995 s of wall time, not a burst
+    # (how late it may be: a figure of bench/bench_node_timing.py, not asserted here).
     arrival = np.asarray(recording["arrival"]["/reference/imu"])
     span = arrival[-1] - arrival[0]
-    assert 2.95 < span < 3.5, span
+    print(f"trajectory_node paced: 600 IMU messages span {span:.3f} s (ideal 2.995 s)")
+    assert span > 2.95, span
     match = re.search(r"3\.000 s of data in (\d+\.\d+) s of wall time", node.output)
-    assert match and 2.99 < float(match.group(1)) < 3.5, node.describe()
+    assert match and float(match.group(1)) > 2.99, node.describe()
     assert re.search(r"max lateness \d+\.\d+ ms", node.output), node.describe()
 
 

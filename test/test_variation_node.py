@@ -211,7 +211,6 @@ def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
     assert f"published {sum(counts[t] for t in OUTPUTS)} messages" in node.output
 
     # Latency: variation cycle m goes out when reference cycle m+1 or m+2 has arrived.
-    period = 1.0 / 200
     fix_arrival = dict(
         zip(
             map(_stamp_of, recording["topics"]["/reference/fix"]),
@@ -229,9 +228,8 @@ def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
     ]
     median = float(np.median(lag))
     print(f"lag behind the reference: median {median * 1e3:.1f} ms, max {max(lag) * 1e3:.1f} ms")
-    # Budget: the look-ahead (pair 2n-1, 2n goes out with cycle 2n+1: 1.5 cycles on average),
-    # the 2 ms quiet that ends a batch, one window's solve (~2.5 ms) and DDS: ~13 ms measured.
-    assert median < 4 * period, median
+    # The budget (median < 4 periods: look-ahead, batch quiet, solve, DDS; ~13 ms measured) is
+    # reported by bench/bench_node_timing.py (from the line printed above), not asserted.
     timing = re.search(r"processing: .*", node.output)
     print(timing.group(0) if timing else node.output)
 
