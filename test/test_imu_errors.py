@@ -605,3 +605,22 @@ def test_scenario_topic_rules_name_the_key():
         parse_scenario(_scenario({"input_topic": "/variation/imu"}, **variation, **renamed))
     ok = parse_scenario(_scenario({}, **variation, **renamed))
     assert ok.imu_errors.topics(ok.recording.topics) == ("/v/imu", "/variation/imu_measured")
+
+
+def test_bag_metadata_names_the_given_preset_and_seed():
+    """``custom_data`` records ``imu_errors.preset`` / ``.seed`` as the file gives them."""
+    from strapdown_ros.generate import bag_custom_data
+
+    reference = {"input_topic": "/reference/imu"}
+
+    def custom(section):
+        data = bag_custom_data(parse_scenario(_scenario({**reference, **section})))
+        return {k: v for k, v in data.items() if k.startswith("imu_errors.")}
+
+    assert custom({"preset": "tactical", "seed": 4}) == {
+        "imu_errors.preset": "tactical",
+        "imu_errors.seed": "4",
+    }
+    assert custom({"seed": 0}) == {"imu_errors.seed": "0"}
+    assert custom({"gyro_arw_dpsh": 0.1}) == {}
+    assert "imu_errors.seed" not in bag_custom_data(parse_scenario(_scenario(None)))
