@@ -368,7 +368,10 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
     [
         ([], r"parameter 'scenario': is required"),
         (
-            [f"scenario:={SCENARIO}", "overrides:=['variation=null', 'navigator=null']"],
+            [
+                f"scenario:={SCENARIO}",
+                "overrides:=['variation=null', 'navigator=null', 'imu_errors=null']",
+            ],
             r"invalid scenario: variation: missing",
         ),
         (
