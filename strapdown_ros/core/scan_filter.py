@@ -45,7 +45,7 @@ Conventions and decisions
   ``k`` cycles of t0 is anticipated, and ``γ_0`` is the filtered rotation accrued before t0
   (``C_filt,0 = C_0 G_C(γ_0)``). The ``k`` increments beyond the last given cycle are needed
   too; :func:`smooth_attitude_offset` holds the last one (the caller can pass ``k`` more cycles
-  and drop them, as :func:`strapdown_ros.core.offsets.offset_history` does). A negative
+  and drop them, as :meth:`strapdown_ros.core.offsets.OffsetModel.history` does). A negative
   ``τ_Flt`` (a lead filter) gives a delay ``k < 0``.
 """
 
