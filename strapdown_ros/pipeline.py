@@ -107,6 +107,13 @@ def expected_counts(scenario: Scenario) -> dict[str, int]:
         "variation_reference_imu": m_var,
         "variation_imu_measured": m_var,
     }
+    names = dict(scenario.recording.topics)
+    if scenario.imu_errors is not None:  # the measured IMU: its input's count, its own name
+        source, measured = scenario.imu_errors.topics(names)
+        imu_counts["variation_imu_measured"] = next(
+            n for k, n in imu_counts.items() if names[k] == source
+        )
+        names["variation_imu_measured"] = measured
     per_key = {
         "clock": cycles + 1,
         "reference_odom": cycles + 1,
@@ -123,8 +130,7 @@ def expected_counts(scenario: Scenario) -> dict[str, int]:
         outputs = imu_counts[key] // st.n + 1
         for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude"):
             per_key[f"navigator_{k}"] = outputs
-    topics = scenario.recording.topics
-    return {topics[k]: per_key[k] for k in produced_keys(scenario)}
+    return {names[k]: per_key[k] for k in produced_keys(scenario)}
 
 
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child
@@ -274,7 +280,7 @@ def run_pipeline(
         subs[topics["reference_imu"]] += 1
         subs[topics["reference_odom"]] += 1
     if scenario.imu_errors is not None:
-        subs[topics["variation_imu"]] += 1
+        subs[scenario.imu_errors.topics(topics)[0]] += 1
     if nav is not None:
         subs[nav.imu_topic] += 1
         if nav.truth_topic:
@@ -317,7 +323,8 @@ def run_pipeline(
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("navigator_node subscribed")
         if scenario.imu_errors is not None:
-            node = start("imu_model_node", per_topic([topics["variation_imu_measured"]]), deep)
+            measured = scenario.imu_errors.topics(topics)[1]
+            node = start("imu_model_node", per_topic([measured]), deep)
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("imu_model_node subscribed")
         if scenario.variation is not None:

@@ -624,3 +624,18 @@ def test_bag_metadata_names_the_given_preset_and_seed():
     assert custom({"seed": 0}) == {"imu_errors.seed": "0"}
     assert custom({"gyro_arw_dpsh": 0.1}) == {}
     assert "imu_errors.seed" not in bag_custom_data(parse_scenario(_scenario(None)))
+
+
+def test_run_expects_the_measured_stream_under_its_topic_with_its_input_count():
+    """``strapdown-sim run`` counts the measured IMU as ``generate`` writes it: under
+    ``imu_errors.output_topic``, one message per message of ``imu_errors.input_topic``."""
+    from strapdown_ros.pipeline import expected_counts
+
+    section = {"input_topic": "/reference/imu", "output_topic": "/ref/measured"}
+    scenario = parse_scenario({**_scenario(section), "duration_s": 0.5})  # 50 cycles at 100 Hz
+    assert expected_counts(scenario) == {
+        "/reference/imu": 50,
+        "/reference/odom": 51,
+        "/reference/fix": 51,
+        "/ref/measured": 50,
+    }
