@@ -648,3 +648,12 @@ def test_stage_decoded_and_raw_input_agree_on_faults(bag, scenario):
     assert _joined(outputs) == want
     assert warn.lines == want_warn.lines and error.lines == want_error.lines
     assert stage.runs == reference.runs == 2
+
+
+def test_stage_method_1_is_offline_only(scenario):
+    method1 = scenario.model_copy(
+        update={"variation": scenario.variation.model_copy(update={"method": 1})}
+    )
+    with pytest.raises(ValueError, match="Method 1 runs offline only"):
+        VariationStage(method1, CYCLES)
+    assert VariationStage(method1, CYCLES, max_window=None).method == 1

@@ -244,7 +244,8 @@ class VariationStage:
     cycles : int
         M, the scenario's last reference cycle; later stamps are dropped.
     max_window : int or None
-        Longest window (cycles) solved at once; None: everything available (offline).
+        Longest window (cycles) solved at once; None: everything available (offline; the only
+        choice for Method 1, whose windows are ``generate``'s pieces).
     residuals : bool
         Keep the one-step residuals of every solved window (see :meth:`feed_batches`).
     info, warn, error : callables
@@ -279,6 +280,11 @@ class VariationStage:
     ) -> None:
         self.scenario = scenario
         self.method, self.gravity = variation_settings(scenario)
+        if self.method == 1 and max_window is not None:
+            raise ValueError(
+                "variation.method: Method 1 runs offline only (max_window=None): its velocity "
+                "recursion restarts at every window"
+            )
         self.cycles = cycles
         self.max_window = max_window
         self.offsets = scenario_offsets(scenario, cycles + 1)
