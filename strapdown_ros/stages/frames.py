@@ -46,6 +46,7 @@ __all__ = [
     "derived_counts",
     "derived_topics",
     "scenario_datum",
+    "static_topic",
 ]
 
 #: Offered QoS stored for ``/tf_static``: a latched (transient local) publisher, as
@@ -442,3 +443,8 @@ class FramedSolver:
 
     def __getattr__(self, name: str) -> object:
         return getattr(self.solver, name)
+
+
+def static_topic(scenario: Scenario) -> str | None:
+    """The ``/tf_static`` topic name, None when the scenario's TF is off."""
+    return _topic(scenario, "tf_static") if tf_spec(scenario).enabled else None
