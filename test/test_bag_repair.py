@@ -155,6 +155,7 @@ def _check_prefix(bag_dir: Path, source, at_least: int, at_most: int | None = No
     return total
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_sigkilled_writer_is_repaired_up_to_the_last_flush(storage, source, tmp_path):
     flushed = _killed_recording(tmp_path, source, storage, flush_every=700, stop=2000)
@@ -556,6 +557,7 @@ def _info(path: Path) -> str:
     return proc.stdout
 
 
+@pytest.mark.slow
 def test_bag_info(source, recorded, tmp_path):
     out = tmp_path / "b"
     d = source.topics["/reference/imu"]

@@ -88,6 +88,7 @@ def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(SCENARIOS))
 def test_every_kind_obeys_the_exactness_rule_read_back_from_disk(tmp_path, kind):
     scenario = write_scenario(tmp_path, kind, SCENARIOS[kind])
@@ -151,6 +152,7 @@ def test_samples_kind_round_trip_through_csv(tmp_path):
 NAV_TOPICS = ("odom", "fix", "error/position", "error/velocity", "error/attitude")
 
 
+@pytest.mark.slow
 def test_default_scenario_reintegration_drift_below_1e4_m(tmp_path):
     out = tmp_path / "default"
     summary = generate_dataset(load_scenario(DEFAULT), out)
@@ -372,6 +374,7 @@ def test_streamed_variation_equals_one_vectorized_run(monkeypatch):
         assert joined == [bytes(p) for p in b.payloads], b.topic
 
 
+@pytest.mark.slow
 def test_samples_kind_from_a_bag_odometry_topic(tmp_path):
     """A generated bag's /reference/odom, decimated to 10 Hz, re-imported as `samples`."""
     seg = write_scenario(tmp_path, "seg", SCENARIOS["segments"])

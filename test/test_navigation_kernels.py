@@ -142,6 +142,7 @@ def test_core_imports_and_navigates_without_numba() -> None:
     assert out == {"have": False, "k": 3, "err": "engine='numba' requires numba"}
 
 
+@pytest.mark.slow
 @needs_numba
 def test_bench_script_runs(capsys: pytest.CaptureFixture[str]) -> None:
     spec = importlib.util.spec_from_file_location(

@@ -148,6 +148,7 @@ def _check_prefix(prefix: Path) -> None:
         assert exe.read_text().startswith("#!"), exe
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", [(), ("--symlink",)], ids=["copy", "symlink"])
 def test_install_ament_prefix_on_temp_prefix(tmp_path, mode):
     prefix = tmp_path / "prefix"

@@ -138,6 +138,7 @@ def _check_png(path: Path) -> None:
     assert colours.shape[0] > 50, f"{path} has only {colours.shape[0]} colours"
 
 
+@pytest.mark.slow
 def test_every_plot_renders_from_a_generated_bag(bags: dict[str, Path]) -> None:
     result = write_report(bags["full"], compare=[bags["method1"]])
     assert result.out_dir == bags["full"] / "report"
@@ -186,6 +187,7 @@ def test_allan_deviation_of_the_measured_increments(bags: dict[str, Path]) -> No
     assert mi.total_gyro.adev[-1].max() > 10 * mi.error_gyro.adev[-1].max()
 
 
+@pytest.mark.slow
 def test_bag_without_navigator_omits_those_plots(bags: dict[str, Path], capsys) -> None:
     out = bags["dir"] / "plain_report"
     assert main(["report", str(bags["plain"]), "--out", str(out)]) == 0
@@ -203,6 +205,7 @@ def test_bag_without_navigator_omits_those_plots(bags: dict[str, Path], capsys) 
     assert "Navigation errors of" not in md
 
 
+@pytest.mark.slow
 def test_report_of_the_generated_bag_as_is(bags: dict[str, Path]) -> None:
     """Whatever the generator writes today, the report of it is complete for its topics."""
     result = write_report(bags["generated"])
