@@ -240,6 +240,10 @@ class FramesStage:
         self._cycles = cycles
         self._static_variation: tuple[np.ndarray, np.ndarray] | None = None
         self._variation_checked = False
+        # reference truth poses waiting for the variation's (stamps, ECEF positions, quaternions)
+        self._ref_t = np.zeros(0, dtype=np.int64)
+        self._ref_p = np.zeros((0, 3))
+        self._ref_q = np.zeros((0, 4))
         self.odom_topics = {_topic(scenario, k): k for k in ODOM_KEYS}
         self.imu_topics = {_topic(scenario, k): k for k in IMU_KEYS}
 
@@ -340,7 +344,7 @@ class FramesStage:
             rows = self._decimated(stamps, s.navigator_period_ns)
             child = fields.child_frame_id
         elif key == "variation_odom":
-            return out + self._variation_tf(stamps)
+            return out + self._variation_tf(fields)
         else:
             return out
         if not rows.size:
@@ -357,35 +361,91 @@ class FramesStage:
         out.append(batch(self.tf_topic, tf))
         return out
 
-    def _variation_tf(self, stamps: np.ndarray) -> list[Batch]:
+    def observe_reference(self, fields: OdometryFields) -> None:
+        """Keep reference truth poses (ECEF Odometry) to pair with the variation's by stamp.
+
+        ``base_link → variation_imu`` is the variation truth relative to the reference truth
+        at the same stamp. ``generate`` feeds the reference Odometry before the variation's
+        (:meth:`feed_batches` does it); the variation node feeds its reference input.
+        """
+        s = self.settings
+        if not s.tf or self.scenario.variation is None or self.variation_is_static():
+            return
+        if fields.frame_id != self.frames["earth"] or not len(fields):
+            return
+        t = np.concatenate([self._ref_t, np.asarray(fields.stamps_ns, dtype=np.int64)])
+        p = np.concatenate([self._ref_p, np.asarray(fields.position, dtype=np.float64)])
+        q = np.concatenate([self._ref_q, np.asarray(fields.orientation, dtype=np.float64)])
+        order = np.argsort(t, kind="stable")
+        t, p, q = t[order], p[order], q[order]
+        keep = np.ones(t.shape, dtype=bool)
+        keep[1:] = t[1:] != t[:-1]  # a repeated stamp: the first one
+        self._ref_t, self._ref_p, self._ref_q = t[keep], p[keep], q[keep]
+
+    def observe_reference_payloads(self, payloads: list[bytes]) -> None:
+        """:meth:`observe_reference` of serialized reference Odometry messages."""
+        if payloads:
+            try:
+                fields = cdr.deserialize(cdr.ODOMETRY, payloads)
+            except cdr.CdrError:  # mixed frame ids: one by one (a bad one is skipped)
+                if len(payloads) > 1:
+                    for payload in payloads:
+                        self.observe_reference_payloads([payload])
+                return
+            self.observe_reference(fields)  # type: ignore[arg-type]
+
+    def _variation_tf(self, fields: OdometryFields) -> list[Batch]:
+        """``base_link → variation_imu`` at the variation truth's stamps (body rate): the
+        variation truth relative to the reference truth of the same stamp, body FLU axes."""
         s = self.settings
         if self.variation_is_static():
             return []
+        stamps = np.asarray(fields.stamps_ns, dtype=np.int64)
         rows = self._decimated(stamps, s.body_period_ns)
+        if not rows.size or not self._ref_t.size:
+            return []
+        i = np.minimum(np.searchsorted(self._ref_t, stamps[rows]), self._ref_t.size - 1)
+        found = self._ref_t[i] == stamps[rows]
+        rows, i = rows[found], i[found]
         if not rows.size:
             return []
-        m = (stamps[rows] - s.t0_ns) // s.period_ns
-        o = self._variation_offsets(int(m.max()))
-        p, c = sensor_in_body(o.lever_arm[m], o.displacement[m], o.c_bvar_bref[m])
+        c_ref = dcm_from_quat_ros(self._ref_q[i])  # C_FLU,ref^E
+        c_ref_t = np.swapaxes(c_ref, -1, -2)
+        d = np.asarray(fields.position, dtype=np.float64)[rows] - self._ref_p[i]
+        translation = (c_ref_t @ d[..., None])[..., 0]  # stacked: same bits for any chunking
+        rotation = c_ref_t @ dcm_from_quat_ros(np.asarray(fields.orientation)[rows])
+        # reference poses up to the last paired stamp are no longer needed
+        last = np.searchsorted(self._ref_t, stamps[rows][-1], side="right")
+        self._ref_t, self._ref_p, self._ref_q = (
+            self._ref_t[last:],
+            self._ref_p[last:],
+            self._ref_q[last:],
+        )
         tf = tf_message_fields(
             stamps[rows],
             [self.frames["base_link"]],
             [self.frames["variation_imu"]],
-            p[:, None],
-            c[:, None],
+            translation[:, None],
+            rotation[:, None],
         )
         return [batch(self.tf_topic, tf)]
 
     def feed_batches(self, batches: list[Batch]) -> list[Batch]:
         """The derived batches of ``batches`` (topics not concerned are ignored)."""
         out: list[Batch] = []
-        for b in batches:
+        odometry = {}
+        for k, b in enumerate(batches):  # reference poses first: the variation pairs with them
+            key = self.odom_topics.get(b.topic)
+            if key is not None and b.msgtype == cdr.ODOMETRY and len(b.payloads):
+                odometry[k] = cdr.deserialize(cdr.ODOMETRY, b.payloads)
+                if key == "reference_odom":
+                    self.observe_reference(odometry[k])  # type: ignore[arg-type]
+        for k, b in enumerate(batches):
             if not len(b.payloads):
                 continue
             key = self.odom_topics.get(b.topic)
-            if key is not None and b.msgtype == cdr.ODOMETRY:
-                fields = cdr.deserialize(cdr.ODOMETRY, b.payloads)
-                out += self._odometry(key, fields)  # type: ignore[arg-type]
+            if k in odometry:
+                out += self._odometry(key, odometry[k])  # type: ignore[arg-type]
                 continue
             key = self.imu_topics.get(b.topic)
             if key is not None and b.msgtype == cdr.IMU and self.settings.increments:
@@ -429,12 +489,25 @@ class FramedSolver:
     left out where tf2_msgs is not available). Everything else is the wrapped solver's.
     """
 
-    def __init__(self, solver: object, frames: FramesStage, topics: Iterable[str]) -> None:
+    def __init__(
+        self,
+        solver: object,
+        frames: FramesStage,
+        topics: Iterable[str],
+        reference_input: object | None = None,
+    ) -> None:
         self.solver = solver
         self.frames = frames
         self.topics = set(topics)
+        #: the ``kind`` of the node's input items that are reference Odometry payloads (the
+        #: variation node's), fed to :meth:`FramesStage.observe_reference_payloads`
+        self.reference_input = reference_input
 
     def on_batch(self, items: list) -> list[tuple[str, int, bytes]]:
+        if self.reference_input is not None and self.topics:
+            self.frames.observe_reference_payloads(
+                [payload for kind, payload in items if kind == self.reference_input]
+            )
         out = self.solver.on_batch(items)  # type: ignore[attr-defined]
         if not out or not self.topics:
             return out
