@@ -220,3 +220,23 @@ def test_frames_stage_same_bytes_for_any_chunking() -> None:
     }  # fmt: skip
     want = {t: len(v) for t, v in expected.items()} | {"/tf_static": 1, "/tf": n_tf}
     assert derived_counts(scenario, counts) == want
+
+
+def test_recorder_reads_the_tf_stamp_for_the_log_time() -> None:
+    """bag_recorder logs a message at its header stamp; for TFMessage, the first transform's
+    (so that run's /tf has generate's log times). An empty TFMessage has none."""
+    from strapdown_ros.bag.payload import PayloadInspector
+
+    inspector = PayloadInspector(cdr.TF_MESSAGE)
+    fields = msgs.tf_message_fields(
+        np.array([1_700_000_000_123_456_789]),
+        ["a", "bb"],
+        ["c", "dd"],
+        np.zeros((1, 2, 3)),
+        np.tile(np.eye(3), (1, 2, 1, 1)),
+    )
+    (payload,) = cdr.serialize(fields)
+    assert inspector.stamp_ns(payload) == 1_700_000_000_123_456_789
+    assert not inspector.may_be_padded and inspector.true_length(payload) == len(payload)
+    empty = bytes(TS.serialize_cdr(T["tf2_msgs/msg/TFMessage"]([]), cdr.TF_MESSAGE))
+    assert inspector.stamp_ns(empty) is None

@@ -8,7 +8,9 @@ padded bytes is not byte-identical to the one ``strapdown-sim generate`` writes.
 (``rosbags`` Jazzy type store: strings, arrays, sequences, nested messages) and strips what
 follows. Types whose serialization always ends 4-byte aligned (Imu, Odometry, Clock,
 Vector3Stamped, ...) are never walked. It also reads the header stamp of messages that start
-with a ``std_msgs/Header`` or a ``builtin_interfaces/Time`` (the bag log time, SPEC §2).
+with a ``std_msgs/Header`` or a ``builtin_interfaces/Time``, and of messages that start with a
+sequence of such messages (``tf2_msgs/TFMessage``: its first transform's stamp), for the bag log
+time (SPEC §2).
 
 Plain CDR (XCDR1, little or big endian) is supported; other encapsulations are left untouched.
 No rclpy here.
@@ -170,6 +172,8 @@ class PayloadInspector:
         self.may_be_padded = not (fields and _ends_aligned(fields[-1][1]))
         #: True when the message starts with a Header or a Time (see :meth:`stamp_ns`).
         self.has_stamp = bool(fields) and _first_name(fields) is not None
+        #: True when it starts with a sequence of such messages (TFMessage): the first one's.
+        self.sequence_stamp = bool(fields) and not self.has_stamp and _first_sequence(fields)
         self._walk: Walk | None = None
         if self.may_be_padded:
             try:
@@ -206,12 +210,19 @@ class PayloadInspector:
 
     def stamp_ns(self, payload: bytes | memoryview) -> int | None:
         """Header stamp (ns) of ``payload``; None when the type has none or it is negative."""
-        if not self.has_stamp or len(payload) < _HEADER + 8:
+        offset = _HEADER
+        if self.sequence_stamp:  # uint32 element count, then the first element's stamp
+            offset += 4
+        elif not self.has_stamp:
+            return None
+        if len(payload) < offset + 8:
             return None
         endian = _endianness(memoryview(payload))
         if endian is None:
             return None
-        sec, nanosec = _STAMP[endian].unpack_from(payload, _HEADER)
+        if self.sequence_stamp and _U32[endian].unpack_from(payload, _HEADER)[0] == 0:
+            return None
+        sec, nanosec = _STAMP[endian].unpack_from(payload, offset)
         stamp = sec * 1_000_000_000 + nanosec
         return stamp if stamp >= 0 else None
 
@@ -219,6 +230,18 @@ class PayloadInspector:
 def _first_name(fields: list) -> str | None:
     kind, arg = fields[0][1]
     return arg if kind == _NAME and arg in _STAMPED_FIRST else None
+
+
+def _first_sequence(fields: list) -> bool:
+    """Whether the first field is a sequence of messages starting with a Header or a Time."""
+    kind, arg = fields[0][1]
+    if kind != _SEQUENCE:
+        return False
+    (sub_kind, sub_arg), _ = arg
+    if sub_kind != _NAME:
+        return False
+    _, sub_fields = _TYPESTORE.fielddefs[sub_arg]
+    return bool(sub_fields) and _first_name(sub_fields) is not None
 
 
 def _endianness(buf: memoryview) -> str | None:
