@@ -192,6 +192,7 @@ def test_sigkilled_writer_is_repaired_up_to_the_last_flush(storage, source, tmp_
     assert data.read_bytes() == before
 
 
+@pytest.mark.slow
 def test_incremental_writer_closed_bag_matches_source(source, tmp_path):
     """Closed normally: metadata as BagWriter writes it, all messages, DEFAULT_QOS stored."""
     items = _messages(source)
@@ -213,6 +214,7 @@ def test_incremental_writer_closed_bag_matches_source(source, tmp_path):
         assert all(c.ext.offered_qos_profiles == [DEFAULT_QOS] for c in reader.connections)
 
 
+@pytest.mark.slow
 def test_mcap_cut_at_any_byte_is_repaired_to_its_complete_records(source, recorded, tmp_path):
     """Random cuts too: each repaired bag is a prefix, in order, byte for byte (our reader and
     rosbags' AnyReader), of exactly the message records complete before the cut."""
@@ -474,6 +476,7 @@ def _foreign_mcap(f: Path, source, compression) -> list[bytes]:
     return d.payloads
 
 
+@pytest.mark.slow
 def test_foreign_mcap_is_described_and_repaired(source, tmp_path):
     bag = tmp_path / "foreign"
     bag.mkdir()

@@ -203,6 +203,7 @@ def test_oversample_sums_generation_increments_and_samples_truth():
     np.testing.assert_array_equal(b.c_b_e0, a.c_b_e0[0::2])
 
 
+@pytest.mark.slow
 def test_refuses_to_overwrite_and_leaves_nothing_on_error(tmp_path):
     scenario = write_scenario(tmp_path, "s", SCENARIOS["segments"])
     out = tmp_path / "bag"
@@ -223,6 +224,7 @@ def test_refuses_to_overwrite_and_leaves_nothing_on_error(tmp_path):
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())  # no temp dirs left
 
 
+@pytest.mark.slow
 def test_overrides_duration_storage_and_clock(tmp_path):
     scenario = write_scenario(tmp_path, "s", SCENARIOS["segments"])
     out = tmp_path / "bag"
@@ -245,6 +247,7 @@ def test_overrides_duration_storage_and_clock(tmp_path):
     assert len(read_bag(out).topics["/reference/imu"]) == 200
 
 
+@pytest.mark.slow
 def test_validate_command_and_bad_key_message(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text(

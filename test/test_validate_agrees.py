@@ -141,6 +141,7 @@ def test_validate_and_generate_reject_the_same_way(tmp_path, capsys, case):
     assert not out.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "case", ["speed would become negative", "not UTF-8 text", "negative scan rate"]
 )
