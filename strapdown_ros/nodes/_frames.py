@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.nodes._common import message_class
-from strapdown_ros.stages.frames import FramesStage, derived_topics
+from strapdown_ros.stages.frames import FramesStage, node_derived_topics
 
 __all__ = ["TF_OFF_REASON", "derived_outputs", "static_qos", "tf_unavailable"]
 
@@ -43,22 +43,10 @@ def tf_unavailable() -> str | None:
 def derived_outputs(
     node: Node, frames: FramesStage, outputs: Iterable[str], *, static: bool = False
 ) -> dict[str, str]:
-    """The derived topics (name → type) a node publishes beside its ``outputs``.
-
-    ``/tf_static`` only with ``static`` (``trajectory_node``); ``/tf`` when an output is a TF
-    source (reference or navigator Odometry, variation Odometry with moving offsets). Without
-    tf2_msgs both are left out and the node logs why, once.
-    """
-    outputs = list(outputs)
-    topics = dict(derived_topics(frames.scenario, dict.fromkeys(outputs, "")))
-    sources = {frames.odom_topics.get(t) for t in outputs}
-    tf_source = bool(sources & {"reference_odom", "navigator_odom"}) or (
-        "variation_odom" in sources and not frames.variation_is_static()
-    )
-    if not static:
-        topics.pop(frames.tf_static_topic, None)
-    if not tf_source:
-        topics.pop(frames.tf_topic, None)
+    """The derived topics (name → type) a node publishes beside its ``outputs``
+    (:func:`~strapdown_ros.stages.frames.node_derived_topics`). Without tf2_msgs the TF topics
+    are left out and the node logs why, once."""
+    topics = node_derived_topics(frames, outputs, static=static)
     if any(m == cdr.TF_MESSAGE for m in topics.values()):
         error = tf_unavailable()
         if error is not None:

@@ -45,6 +45,7 @@ __all__ = [
     "FramesStage",
     "derived_counts",
     "derived_topics",
+    "node_derived_topics",
     "scenario_datum",
     "static_topic",
 ]
@@ -521,3 +522,23 @@ class FramedSolver:
 def static_topic(scenario: Scenario) -> str | None:
     """The ``/tf_static`` topic name, None when the scenario's TF is off."""
     return _topic(scenario, "tf_static") if tf_spec(scenario).enabled else None
+
+
+def node_derived_topics(
+    frames: FramesStage, outputs: Iterable[str], *, static: bool = False
+) -> dict[str, str]:
+    """The derived topics (name → type) a node publishes beside its ``outputs``: ``/tf_static``
+    only with ``static`` (``trajectory_node``), ``/tf`` when an output is a TF source
+    (reference or navigator Odometry, variation Odometry with moving offsets), the map-frame
+    odometry and increments of its outputs."""
+    outputs = list(outputs)
+    topics = dict(derived_topics(frames.scenario, dict.fromkeys(outputs, "")))
+    sources = {frames.odom_topics.get(t) for t in outputs}
+    tf_source = bool(sources & {"reference_odom", "navigator_odom"}) or (
+        "variation_odom" in sources and not frames.variation_is_static()
+    )
+    if not static:
+        topics.pop(frames.tf_static_topic, None)
+    if not tf_source:
+        topics.pop(frames.tf_topic, None)
+    return topics
