@@ -127,6 +127,32 @@ def build_parser() -> argparse.ArgumentParser:
         "--force", action="store_true", help="rebuild the metadata even if the bag reads fine"
     )
     bag_info = bag_sub.add_parser("info", help="topics, types, message counts and duration")
+
+    cmp_ = sub.add_parser(
+        "campaign",
+        help="Monte Carlo runs of a scenario (IMU error realizations, drawn values) on Dask",
+    )
+    _add_scenario_args(cmp_)
+    cmp_.add_argument("--runs", type=int, required=True, metavar="N", help="number of runs")
+    cmp_.add_argument("--out", required=True, help="campaign directory (reused to resume)")
+    cmp_.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        metavar="KEY=SPEC",
+        help="draw a scenario value per run: KEY=normal(MEAN,SIGMA) or KEY=uniform(LOW,HIGH) "
+        "(lists for vector keys; repeatable; docs/campaigns.md)",
+    )
+    cmp_.add_argument("--seed", type=int, default=0, help="campaign seed (default 0)")
+    cmp_.add_argument("--bags", action="store_true", help="also write each run's full bag")
+    cmp_.add_argument(
+        "--scheduler", default=None, metavar="ADDRESS",
+        help="an existing Dask scheduler, e.g. tcp://10.0.0.1:8786 (default: a local cluster)",
+    )  # fmt: skip
+    cmp_.add_argument(
+        "--workers", type=int, default=None, metavar="K",
+        help="worker processes of the local cluster (default: one per core)",
+    )  # fmt: skip
     bag_info.add_argument("bag", help="bag directory")
     return parser
 
@@ -294,6 +320,29 @@ def _bag(args: argparse.Namespace) -> int:
     return 0
 
 
+def _campaign(args: argparse.Namespace) -> int:
+    from strapdown_ros.campaign import run_campaign
+
+    if args.runs < 1:
+        print("strapdown-sim campaign: --runs must be >= 1", file=sys.stderr)
+        return 2
+    if args.workers is not None and args.workers < 1:
+        print("strapdown-sim campaign: --workers must be >= 1", file=sys.stderr)
+        return 2
+    try:
+        result = run_campaign(
+            args.scenario, args.out, args.runs, overrides=args.overrides,
+            duration_s=args.duration, vary=args.vary, seed=args.seed, bags=args.bags,
+            scheduler=args.scheduler, workers=args.workers,
+            log=lambda m: print(m, file=sys.stderr),
+        )  # fmt: skip
+    except FileExistsError as exc:
+        print(f"strapdown-sim campaign: {exc}", file=sys.stderr)
+        return 2
+    print(result.format())
+    return 1 if result.failed else 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``strapdown-sim``; return the process exit status."""
     args = build_parser().parse_args(argv)
@@ -310,6 +359,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _check(args)
         if args.command == "report":
             return _report(args)
+        if args.command == "campaign":
+            return _campaign(args)
         if args.command == "bag":
             return _bag(args)
     except ScenarioError as exc:

@@ -1,0 +1,146 @@
+"""``strapdown-sim campaign``: Monte Carlo realizations of a scenario on Dask distributed.
+
+:func:`run_campaign` plans the runs (:mod:`~strapdown_ros.campaign.plan`), computes what all
+runs share once (:mod:`~strapdown_ros.campaign.compute`), runs the missing runs on a Dask
+cluster (:mod:`~strapdown_ros.campaign.engine`), and writes the per-run results, the ensemble
+tables (:mod:`~strapdown_ros.campaign.results`) and the report
+(:mod:`~strapdown_ros.campaign.report`). Usage and examples: docs/campaigns.md.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+from strapdown_ros.campaign.plan import CampaignPlan
+from strapdown_ros.campaign.vary import parse_vary
+
+__all__ = ["CampaignResult", "run_campaign"]
+
+
+@dataclass
+class CampaignResult:
+    """What :func:`run_campaign` did."""
+
+    out: Path
+    runs: int
+    ran: list[int] = field(default_factory=list)
+    skipped: list[int] = field(default_factory=list)
+    failed: dict[int, str] = field(default_factory=dict)
+    shared: str = ""
+    shared_s: float = 0.0
+    elapsed_s: float = 0.0
+    workers: int = 0
+    dashboard: str | None = None
+    report: Path | None = None
+
+    def format(self) -> str:
+        """Human-readable summary."""
+        lines = [
+            f"campaign:  {self.out} ({self.runs} runs)",
+            f"workers:   {self.workers}" + (f", dashboard {self.dashboard}" if self.dashboard
+                                            else ""),
+            f"shared:    {self.shared} (computed once in {self.shared_s:.2f} s)",
+            f"ran:       {len(self.ran)} runs in {self.elapsed_s:.2f} s"
+            + (f"; {len(self.skipped)} already finished (skipped)" if self.skipped else ""),
+        ]  # fmt: skip
+        if self.failed:
+            lines.append(f"failed:    {len(self.failed)} runs")
+            lines += [f"  run {k:04d}: {why}" for k, why in sorted(self.failed.items())]
+        if self.report is not None:
+            lines.append(f"report:    {self.report}")
+        return "\n".join(lines)
+
+
+def _versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for dist in ("numpy", "scipy", "numba", "dask", "distributed", "pyarrow"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def _write_info(plan: CampaignPlan, out: Path, runs: int, vary: list[str]) -> None:
+    info = {
+        "scenario": str(plan.scenario_path),
+        "scenario_name": plan.base.name,
+        "runs": runs,
+        "seed": plan.seed,
+        "common": plan.common,
+        "seed_keys": plan.seed_keys,
+        "vary": vary,
+        "shared": plan.shared_level,
+        "versions": _versions(),
+    }
+    path = out / "campaign.json"
+    if path.exists():
+        old = json.loads(path.read_text())
+        same = {k: old.get(k) for k in ("scenario", "seed", "common", "vary")}
+        if same != {k: info[k] for k in same}:
+            raise FileExistsError(
+                f"{out} holds a different campaign ({old.get('scenario')}, seed {old.get('seed')},"
+                f" overrides {old.get('common')}, vary {old.get('vary')}); use another --out"
+            )
+    path.write_text(json.dumps(info, indent=1))
+
+
+def run_campaign(
+    scenario: str | Path,
+    out: str | Path,
+    runs: int,
+    *,
+    overrides: list[str] | None = None,
+    duration_s: float | None = None,
+    vary: list[str] | None = None,
+    seed: int = 0,
+    bags: bool = False,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    log=print,
+) -> CampaignResult:
+    """Run (or complete) a campaign of ``runs`` realizations into ``out``.
+
+    Finished runs in ``out`` (from an interrupted invocation with the same scenario, overrides,
+    varied keys and seed) are kept and not run again.
+    """
+    from strapdown_ros.campaign.compute import run_one, shared_inputs
+    from strapdown_ros.campaign.engine import dask_client, run_tasks
+    from strapdown_ros.campaign.report import write_campaign_report
+    from strapdown_ros.campaign.results import collect, finished_runs, write_run
+
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise ValueError(f"--runs must be an integer >= 1, got {runs!r}")
+    varies = [parse_vary(v) for v in vary or []]
+    plan = CampaignPlan(Path(scenario), list(overrides or []), duration_s, varies, seed)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_info(plan, out, runs, [v.text for v in varies])
+    result = CampaignResult(out=out, runs=runs, shared=plan.shared_level)
+    done = finished_runs(out)
+    result.skipped = sorted(k for k in done if k < runs)
+    missing = [k for k in range(runs) if k not in done]
+    start = time.monotonic()
+    if missing:
+        t = time.perf_counter()
+        shared = shared_inputs(plan)
+        result.shared_s = time.perf_counter() - t
+        with dask_client(scheduler, workers) as client:
+
+            def store(k: int, value: object) -> None:
+                write_run(out, value)  # type: ignore[arg-type]
+
+            engine = run_tasks(
+                client, missing, run_one, shared, (plan, str(out) if bags else None), store, log
+            )
+        result.ran, result.failed = sorted(engine.done), engine.failed
+        result.workers, result.dashboard = engine.workers, engine.dashboard
+    result.elapsed_s = time.monotonic() - start
+    summaries, _, _ = collect(out, runs)
+    result.report = write_campaign_report(out, runs, summaries, result.failed)
+    return result
