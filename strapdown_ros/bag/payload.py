@@ -170,10 +170,12 @@ class PayloadInspector:
         _, fields = _TYPESTORE.fielddefs[msgtype]
         #: False when the CDR data always ends 4-byte aligned (no padding can be appended).
         self.may_be_padded = not (fields and _ends_aligned(fields[-1][1]))
-        #: True when the message starts with a Header or a Time (see :meth:`stamp_ns`).
-        self.has_stamp = bool(fields) and _first_name(fields) is not None
+        header_first = bool(fields) and _first_name(fields) is not None
         #: True when it starts with a sequence of such messages (TFMessage): the first one's.
-        self.sequence_stamp = bool(fields) and not self.has_stamp and _first_sequence(fields)
+        self.sequence_stamp = bool(fields) and not header_first and _first_sequence(fields)
+        #: True when the message starts with a Header or a Time, or with a sequence of messages
+        #: that do (see :meth:`stamp_ns`).
+        self.has_stamp = header_first or self.sequence_stamp
         self._walk: Walk | None = None
         if self.may_be_padded:
             try:
@@ -210,11 +212,9 @@ class PayloadInspector:
 
     def stamp_ns(self, payload: bytes | memoryview) -> int | None:
         """Header stamp (ns) of ``payload``; None when the type has none or it is negative."""
-        offset = _HEADER
-        if self.sequence_stamp:  # uint32 element count, then the first element's stamp
-            offset += 4
-        elif not self.has_stamp:
+        if not self.has_stamp:
             return None
+        offset = _HEADER + (4 if self.sequence_stamp else 0)  # a sequence: its uint32 count
         if len(payload) < offset + 8:
             return None
         endian = _endianness(memoryview(payload))
