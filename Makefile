@@ -31,11 +31,12 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help setup test test-fast lint bench run generate clean distclean
+.PHONY: help setup test test-fast lint bench run generate campaign clean distclean
 
 help:
 	@echo "make setup      create/update .venv (pinned deps, editable package, ament prefix)"
 	@echo "make run        live pipeline on the default scenario into out/default, then its report"
+	@echo "make campaign   100 Monte Carlo runs of the default flight on a local Dask cluster"
 	@echo "make generate   the same scenario offline into out/default_offline, then its report"
 	@echo "make test       ruff check + pytest, every test (the CI command)"
 	@echo "make test-fast  ruff check + pytest -m \"not dds and not slow\" (no ROS process, rclpy blocked)"
@@ -112,6 +113,13 @@ run: setup
 generate: setup
 	strapdown-sim generate config/scenarios/default.yaml --out out/default_offline --force
 	strapdown-sim report out/default_offline
+
+# A Monte Carlo campaign: 100 realizations of the default flight (tactical IMU errors, bending)
+# on a local Dask cluster; resumable (same --out), report in out/campaign_default/report/.
+CAMPAIGN_RUNS ?= 100
+campaign: setup
+	strapdown-sim campaign config/scenarios/default.yaml --runs $(CAMPAIGN_RUNS) \
+	    --out out/campaign_default
 
 clean:
 	rm -rf out build install log .pytest_cache .ruff_cache *.egg-info
