@@ -304,6 +304,8 @@ class _Gnss(_Channel):
             covariance=np.broadcast_to(self.twist_cov, (n, 36)),
         )
         log = stamps + self.latency_ns
+        if not n:  # every epoch inside an outage
+            return []
         self.pending += [
             AidingOutput(AIDING_TOPICS["gnss_fix"], fix, log),
             AidingOutput(AIDING_TOPICS["gnss_vel"], vel, log),
@@ -311,8 +313,8 @@ class _Gnss(_Channel):
         return []
 
     def release(self, last_truth_ns: int) -> list[AidingOutput]:
-        if not self.pending:
-            return []
+        if not self.pending or self.pending[0].log_ns[0] > last_truth_ns:
+            return []  # the earliest held message is not due yet
         merged = _merge([self.pending])
         out, rest = [], []
         for o in merged:
