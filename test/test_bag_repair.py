@@ -669,6 +669,7 @@ def test_log_message_stamp():
 # topic list
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "overrides",
     [

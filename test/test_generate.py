@@ -306,6 +306,7 @@ VARIATIONS = {
 }  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(VARIATIONS))
 def test_variation_streams_read_back_obey_exactness_and_constraints(tmp_path, kind):
     from strapdown_ros.config.variation import VariationSpec
