@@ -343,9 +343,88 @@ def _campaign(args: argparse.Namespace) -> int:
     return 1 if result.failed else 0
 
 
+#: Exit status of an interrupted command (128 + SIGINT), as a shell reports Ctrl-C.
+EXIT_INTERRUPTED = 130
+
+
+def _describe_output(out: str | None) -> str:
+    """What an interrupted command left at ``out``: the bag's message counts, a hint to repair
+    it, or that nothing was written."""
+    from pathlib import Path
+
+    if not out:
+        return ""
+    path = Path(out)
+    if not path.exists():
+        return f"nothing written at {path}"
+    try:
+        from strapdown_ros.bag.reader import bag_info
+
+        return f"the bag at {path} is closed and readable:\n{bag_info(path)}"
+    except Exception as exc:  # any reading problem: name it and the repair command
+        return (
+            f"{path} is left as it was when interrupted ({exc}); "
+            f"run 'strapdown-sim bag repair {path}' to make it readable"
+        )
+
+
+def _environment_fault(command: str, exc: OSError) -> str:
+    """One line naming a file-system fault (full disk, read-only, permissions, missing)."""
+    import errno
+
+    where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
+    hints = {
+        errno.ENOSPC: "the disk is full",
+        errno.EROFS: "the destination is on a read-only file system",
+        errno.EACCES: "permission denied",
+        errno.EDQUOT: "disk quota exceeded",
+    }
+    hint = hints.get(exc.errno or 0, exc.strerror or str(exc))
+    return f"strapdown-sim {command}: {hint}{where} ({exc.strerror or exc})"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``strapdown-sim``; return the process exit status."""
+    """Run ``strapdown-sim``; return the process exit status.
+
+    User errors and environment faults (invalid scenario, unreadable bag, full or read-only
+    disk) are reported in one line, exit status 1 or 2; Ctrl-C stops the command cleanly with
+    exit status 130 (what was written is summarized). Only an internal bug shows a traceback,
+    behind a one-line summary.
+    """
     args = build_parser().parse_args(argv)
+    try:
+        return _dispatch(args)
+    except KeyboardInterrupt:
+        described = _describe_output(getattr(args, "out", None))
+        print(
+            f"strapdown-sim {args.command}: interrupted"
+            + (f"; {described}" if described else ""),
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    except OSError as exc:
+        message = _environment_fault(args.command, exc)
+        if args.command == "generate":  # the bag is written atomically (bag/writer.py)
+            from pathlib import Path
+
+            left = "nothing was written" if not Path(args.out).exists() else "it was not changed"
+            message += f"; {left} at {args.out}"
+        print(message, file=sys.stderr)
+        return 1
+    except Exception as exc:
+        import traceback
+
+        print(
+            f"strapdown-sim {args.command}: internal error ({type(exc).__name__}: {exc}); "
+            "this is a bug, please report it with the traceback below",
+            file=sys.stderr,
+        )
+        traceback.print_exc()
+        return 1
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    """Run the subcommand of ``args``; user errors become a message and an exit status."""
     try:
         if args.command == "generate":
             return _generate(args)
@@ -368,7 +447,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except Exception as exc:  # the bag reader and writer raise with the path and the problem
         name = type(exc).__name__
-        if name in {"BagReadError", "BagWriteError"}:
+        if name in {"BagReadError", "BagWriteError", "BagRepairError", "ReportError",
+                    "StreamError", "PipelineError"}:  # fmt: skip
             print(f"strapdown-sim {args.command}: {exc}", file=sys.stderr)
             return 1
         raise

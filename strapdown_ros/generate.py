@@ -128,14 +128,38 @@ def bag_custom_data(scenario: Scenario) -> dict[str, str]:
 _END = "end"
 
 
-def _produce(items: Iterator[object], out: object) -> None:
-    """Producer body (thread or forked process): put every item, then _END or the exception."""
+def _portable(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling with the same type and message (it is re-raised in the
+    parent as it is), else a RuntimeError with its type, message and the worker's traceback."""
+    import pickle
+    import traceback
+
+    try:
+        back = pickle.loads(pickle.dumps(exc))
+        if type(back) is type(exc) and str(back) == str(exc):
+            return exc
+    except Exception:  # noqa: S110 - not picklable: described below
+        pass
+    tb = "".join(traceback.format_exception(exc))
+    return RuntimeError(f"{type(exc).__name__}: {exc} (in the generator worker)\n{tb}")
+
+
+def _produce(items: Iterator[object], out: object, forked: bool = False) -> None:
+    """Producer body (thread or forked process): put every item, then _END or the exception.
+
+    A forked worker ignores SIGINT: Ctrl-C reaches the parent (same process group), which
+    stops the worker; the worker must not print a traceback of its own.
+    """
+    if forked:
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         for item in items:
             out.put(item)  # type: ignore[attr-defined]
         out.put(_END)  # type: ignore[attr-defined]
     except BaseException as exc:  # re-raised by the consumer
-        out.put(exc)  # type: ignore[attr-defined]
+        out.put(_portable(exc) if forked else exc)  # type: ignore[attr-defined]
 
 
 class _Producer:
@@ -151,7 +175,7 @@ class _Producer:
             ctx = mp.get_context("fork")
             self._queue = ctx.Queue(maxsize=depth)
             self._worker: threading.Thread | mp.process.BaseProcess = ctx.Process(
-                target=_produce, args=(items, self._queue), daemon=True
+                target=_produce, args=(items, self._queue, True), daemon=True
             )
         else:
             self._queue = queue.Queue(maxsize=depth)  # type: ignore[assignment]

@@ -11,7 +11,7 @@ message, the recorder (``stop_when_done``) when all its publishers are gone, and
 message counts are checked against what the scenario produces.
 
 Children die with this process (``PR_SET_PDEATHSIG`` on Linux); when one fails, the others are
-stopped (SIGINT, then SIGKILL) and its log is printed. Logs: ``<out>.logs/<node>.log``.
+stopped (SIGTERM, then SIGKILL) and its log is printed. Logs: ``<out>.logs/<node>.log``.
 """
 
 from __future__ import annotations
@@ -147,9 +147,11 @@ class _Child:
         self.log_path = log_dir / f"{name}.log"
         self._log = open(self.log_path, "w")  # noqa: SIM115 - closed in close()
         preexec = _die_with_parent if sys.platform.startswith("linux") else None
+        # A process group of its own: Ctrl-C in the terminal reaches this process only, which
+        # stops every child once, in order (a child still importing must not get SIGINT).
         self.proc = subprocess.Popen(
             args, env=env, stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
-            preexec_fn=preexec,
+            preexec_fn=preexec, process_group=0,
         )  # fmt: skip
 
     @property
@@ -170,8 +172,10 @@ class _Child:
             time.sleep(0.05)
 
     def stop(self) -> None:
+        # SIGTERM: the nodes finish as on SIGINT (summary, bag closed); a child interrupted
+        # before its handlers are installed ends silently (no KeyboardInterrupt traceback).
         if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
+            self.proc.send_signal(signal.SIGTERM)
 
     def close(self) -> None:
         self._log.close()

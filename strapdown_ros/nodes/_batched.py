@@ -112,6 +112,32 @@ class BatchedInputNode(Node):
         """The end-of-run summary (wall and process CPU seconds since the first input)."""
         raise NotImplementedError
 
+    @property
+    def input_events(self) -> Any:
+        """The stage's :class:`~strapdown_ros.stages.checks.InputEvents` (None: none)."""
+        return getattr(getattr(self, "solver", None), "events", None)
+
+    def interrupted_summary(self) -> str:
+        """The summary when a signal stopped the node (``run_node`` logs it)."""
+        if not hasattr(self, "batch"):
+            return ""
+        t0 = getattr(self, "_run_t0", None)
+        wall = time.monotonic() - t0[0] if t0 else 0.0
+        cpu = time.process_time() - t0[1] if t0 else 0.0
+        return self._full_summary(wall, cpu, interrupted=True)
+
+    def _full_summary(self, wall_s: float, cpu_s: float, interrupted: bool = False) -> str:
+        """:meth:`_summary`, the input messages received and the input events by class."""
+        lines = [self._summary(wall_s, cpu_s)]
+        if interrupted:
+            lines.insert(0, "interrupted by a signal before the end of the input")
+        events = self.input_events
+        lines.append(
+            f"received {self.batch.received} input messages; "
+            + (events.summary() if events is not None else "input events: not counted")
+        )
+        return "\n".join(lines)
+
     # -- the loop ------------------------------------------------------------------------------
 
     def run(self, executor: Executor) -> int:
@@ -137,6 +163,7 @@ class BatchedInputNode(Node):
         batch.last_input = time.monotonic()
         wall_start: float | None = None
         cpu_start = 0.0
+        self._run_t0 = (time.monotonic(), time.process_time())
         status = EXIT_OK
         while rclpy.ok(context=self.context):
             # Messages wait at most batch_period_s (or until the input pauses); a node that
@@ -158,11 +185,11 @@ class BatchedInputNode(Node):
             if time.monotonic() - batch.last_input > rc.idle_timeout_s:
                 self._idle_stop()
                 break
+        wall = time.monotonic() - wall_start if wall_start is not None else 0.0
+        cpu = time.process_time() - cpu_start if wall_start is not None else 0.0
         if not rclpy.ok(context=self.context):
-            raise ExternalShutdownException()
+            raise ExternalShutdownException()  # run_node logs interrupted_summary()
         if status == EXIT_OK:
-            wall = time.monotonic() - wall_start if wall_start is not None else 0.0
-            cpu = time.process_time() - cpu_start if wall_start is not None else 0.0
-            self.get_logger().info(self._summary(wall, cpu))
+            self.get_logger().info(self._full_summary(wall, cpu))
         drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)
         return status

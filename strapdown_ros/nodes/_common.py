@@ -347,6 +347,19 @@ def make_executor(node: Node, kind: str) -> Executor:
     return executor
 
 
+def _interrupted_summary(node: Any, logger: Any) -> None:
+    """Log the end-of-run summary of a node stopped by a signal (if it has one to give)."""
+    summary = getattr(node, "interrupted_summary", None)
+    if summary is None:
+        return
+    try:
+        text = summary()
+    except Exception:  # noqa: S110 - the summary is a courtesy; never fail the shutdown
+        return
+    if text:
+        logger.info(text)
+
+
 def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None = None) -> int:
     """Entry point shared by the nodes: init, build, ``node.run(executor)``, clean shutdown.
 
@@ -374,13 +387,18 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
         logger.error(f"invalid scenario: {exc}")
         return EXIT_INVALID
     except (KeyboardInterrupt, ExternalShutdownException):
+        _interrupted_summary(node, logger)
         return EXIT_OK
     except Exception as exc:
         if not rclpy.ok():  # a signal shut the context down under a publish or a wait
+            _interrupted_summary(node, logger)
             return EXIT_OK
         logger.error(f"failed: {exc}\n{traceback.format_exc()}")
         return EXIT_FAILURE
     finally:
+        # A second SIGINT/SIGTERM during the clean-up must not end in a traceback.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         if executor is not None and node is not None:
             executor.remove_node(node)
             executor.shutdown()

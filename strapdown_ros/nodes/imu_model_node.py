@@ -59,7 +59,7 @@ class ImuModelNode(BatchedInputNode):
             self.output_topic,
             info=log.info,
             warn=lambda msg: log.warning(msg),
-            error=lambda msg: log.error(msg, throttle_duration_sec=1.0),
+            error=lambda msg: log.error(msg),
         )
         self.last_cycle = last_input_cycle(scenario, self.input_topic)
         try:
@@ -101,6 +101,10 @@ class ImuModelNode(BatchedInputNode):
     def finished(self) -> bool:
         """The last cycle of the scenario's input stream has been processed."""
         return self.last_cycle is not None and self.stream.last_cycle >= self.last_cycle
+
+    @property
+    def input_events(self) -> Any:
+        return self.stream.events
 
     def _idle_stop(self) -> None:
         timeout = self.run_control.idle_timeout_s

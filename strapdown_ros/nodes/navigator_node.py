@@ -112,7 +112,7 @@ class NavigatorNode(BatchedInputNode):
             earth_frame=scenario.recording.frames["earth"] if scenario is not None else "earth",
             info=log.info,
             warn=lambda m: log.warning(m),
-            error=lambda m: log.error(m, throttle_duration_sec=1.0),
+            error=lambda m: log.error(m),
         )
         self.spec = spec
         for key, topic in out_topics.items():

@@ -84,7 +84,7 @@ class VariationNode(BatchedInputNode):
             cycles,
             info=log.info,
             warn=lambda msg: log.warning(msg),
-            error=lambda msg: log.error(msg, throttle_duration_sec=1.0),
+            error=lambda msg: log.error(msg),
         )
         self.inputs = {IMU: topics["reference_imu"], ODOM: topics["reference_odom"]}
         for key in OUTPUT_PARAMETERS.values():

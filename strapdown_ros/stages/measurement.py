@@ -35,6 +35,7 @@ from strapdown_ros.messages import (
     imu_fields_from_increments,
     imu_increments,
 )
+from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches
 from strapdown_ros.stages.reference import build_trajectory, output_cycles
 
 __all__ = [
@@ -48,6 +49,9 @@ __all__ = [
 ]
 
 Log = Callable[[str], None]
+
+#: An older stamp more than this many cycles behind the last one means the input restarted.
+MAX_LATE_CYCLES = 10
 
 
 def _ignore(_: str) -> None:
@@ -181,6 +185,8 @@ class MeasuredImuStream:
         self.last_cycle = 0
         self.published = 0
         self.runs = 1
+        #: Input events by class (logged one line each; counted for the node's summary).
+        self.events = InputEvents(warn, error)
 
     def describe(self, m: int) -> str:
         """``stamp (cycle m)`` of cycle m."""
@@ -193,37 +199,62 @@ class MeasuredImuStream:
         bad = (offset % self.period_ns != 0) | (m < 1)
         return np.where(bad, -1, m)
 
+    def _nonfinite(self, ideal: ImuFields, stamps: np.ndarray, cycles: np.ndarray) -> None:
+        """Mark the messages with a non-finite value as dropped (cycle -2); log each stretch."""
+        bad = nonfinite_rows(ideal)
+        if bad is None:
+            return
+        cycles[bad] = -2
+        for a, b in stretches(bad):
+            span = format_stamp(int(stamps[a]))
+            if b > a:
+                span += f"..{format_stamp(int(stamps[b]))} ({b - a + 1} messages)"
+            self.events(
+                "non-finite",
+                f"{self.input_topic}: stamp {span}: NaN or infinity in the message; dropped "
+                "(no measured message for it; the model is advanced over the missing cycle)",
+                error=True,
+            )
+
     def feed(self, ideal: ImuFields) -> ImuFields | None:
         """Measured messages of the ideal messages ``ideal`` (None if all were dropped)."""
         stamps = np.asarray(ideal.stamps_ns, dtype=np.int64)
         cycles = self._cycles(stamps)
+        self._nonfinite(ideal, stamps, cycles)
         parts: list[ImuFields] = []
         i, n = 0, len(stamps)
         while i < n:
             m = int(cycles[i])
+            if m == -2:
+                i += 1
+                continue
             if m < 0:
-                self.error(
+                self.events(
+                    "off-grid stamp",
                     f"{self.input_topic}: stamp {format_stamp(int(stamps[i]))} is not a cycle "
                     f"m >= 1 of the scenario's grid (start {format_stamp(self.t0_ns)}, T = "
-                    f"{self.period_ns} ns); rejected"
+                    f"{self.period_ns} ns); rejected",
+                    error=True,
                 )
                 i += 1
                 continue
             last = self.last_cycle
             if m <= last:
-                if m == 1:
-                    self.warn(
-                        f"{self.input_topic}: stamp {self.describe(1)} after {self.describe(last)}"
-                        ": the input restarted; the model restarts from its seed (a new run)"
+                if m == 1 or m < last - MAX_LATE_CYCLES:
+                    self.events(
+                        "restart",
+                        f"{self.input_topic}: stamp {self.describe(m)} after {self.describe(last)}"
+                        ": the input restarted; the model restarts from its seed (a new run)",
                     )
                     self.model = ImuErrorModel(self.params, self.period_ns * 1e-9)
                     self.last_cycle = last = 0
                     self.runs += 1
                 else:
                     what = "duplicate stamp" if m == last else "out-of-order stamp"
-                    self.warn(
+                    self.events(
+                        what,
                         f"{self.input_topic}: {what} {self.describe(m)} after "
-                        f"{self.describe(last)}: dropped"
+                        f"{self.describe(last)}: dropped",
                     )
                     i += 1
                     continue
@@ -235,7 +266,8 @@ class MeasuredImuStream:
                         f"is advanced over cycles 1..{m - 1}"
                     )
                 else:
-                    self.warn(
+                    self.events(
+                        "gap",
                         f"{self.input_topic}: gap: stamp {self.describe(m)} follows "
                         f"{self.describe(last)}; the model is advanced over the {missing} "
                         "missing cycle(s) (noise continues; the quantizer misses their "
@@ -264,7 +296,11 @@ class MeasuredImuStream:
         try:
             ideal = cdr.deserialize(cdr.IMU, [payload])
         except Exception as exc:  # any decoding problem rejects the message
-            self.error(f"{self.input_topic}: rejected a message that does not decode: {exc}")
+            self.events(
+                "malformed",
+                f"{self.input_topic}: rejected a message that does not decode: {exc}",
+                error=True,
+            )
             return None
         out = self.feed(ideal)  # type: ignore[arg-type]
         if out is None:

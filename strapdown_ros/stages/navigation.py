@@ -63,6 +63,7 @@ from strapdown_ros.messages import (
     odometry_state,
     vector3_stamped_fields,
 )
+from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
 
 __all__ = [
     "INPUT_STREAMS",
@@ -85,6 +86,8 @@ Message = tuple[str, int, bytes]
 
 #: Truth messages kept for (re)starting runs.
 TRUTH_KEEP = 4096
+#: An IMU stamp more than this many periods behind the expected one: the source restarted.
+MAX_LATE_CYCLES = 10
 
 
 class StreamError(ValueError):
@@ -308,6 +311,9 @@ class NavigatorRun:
         self._dv: list[F64] = []
         self._buffered = 0
         self._truth: dict[int, tuple[F64, ...]] = {}
+        self.truth_latest_ns: int | None = None  # latest truth stamp received (any stamp)
+        self.truth_lost: list[int] = []  # output stamps whose truth is lost, not yet reported
+        self._alt = float(initial.alt)  # altitude (m) of the last cycle integrated
         w0 = np.zeros(3) if initial_omega is None else np.asarray(initial_omega, dtype=np.float64)
         self._held: list[tuple[int, NavSolution, F64]] = [
             (self.start_ns, _solution_rows(initial, self.n), w0[None])
@@ -344,6 +350,10 @@ class NavigatorRun:
     def add_truth(self, state: EarthState) -> None:
         """Remember truth rows by stamp (those on the navigation grid are kept)."""
         stamps = np.asarray(state.stamps_ns, dtype=np.int64)
+        if stamps.size:
+            latest = int(stamps.max())
+            if self.truth_latest_ns is None or latest > self.truth_latest_ns:
+                self.truth_latest_ns = latest
         rel = stamps - self.start_ns
         keep = np.flatnonzero((rel >= 0) & (rel % self.nav_period_ns == 0))
         for i in keep:
@@ -351,12 +361,28 @@ class NavigatorRun:
 
     # -- output ------------------------------------------------------------------------------
 
+    def _truth_lost(self, stamp: int) -> bool:
+        """The truth of ``stamp`` did not arrive and a later one did: it is lost (truth comes in
+        stamp order)."""
+        return self.truth_latest_ns is not None and self.truth_latest_ns > stamp
+
     def outputs(self) -> NavigatorOutputs | None:
-        """Integrate every complete cycle; return the outputs now complete (None if none)."""
+        """Integrate every complete cycle; return the outputs now complete (None if none).
+
+        With a truth topic an output waits for the truth of its stamp; if that truth is lost
+        (a later one arrived), the output is published without its error messages (the
+        navigator runs on from its own state; call again for the outputs after it).
+        """
         self._integrate()
         ready = []
+        lost = False
         for item in self._held:
             if self.use_truth and item[0] not in self._truth:
+                if ready or not self._truth_lost(item[0]):
+                    break
+                lost = True
+                self.truth_lost.append(item[0])
+                ready.append(item)
                 break
             ready.append(item)
         if not ready:
@@ -366,7 +392,7 @@ class NavigatorRun:
         sol = _concat([r[1] for r in ready])
         omega = np.concatenate([r[2] for r in ready])
         truth = None
-        if self.use_truth:
+        if self.use_truth and not lost:
             rows = [self._truth[int(s)] for s in stamps]
             truth = _truth(EarthState(stamps, *(np.array([r[i] for r in rows]) for i in range(4))))
         self._prune_truth()
@@ -376,9 +402,13 @@ class NavigatorRun:
         n = self.n
         cycles = self._buffered // n
         if self.damped:
-            # h_aux of cycle k: truth altitude at its start stamp (must have arrived).
+            # h_aux of cycle k: truth altitude at its start stamp (must have arrived; if it is
+            # lost, the navigator's own altitude: no damping correction over that cycle).
             have = 0
-            while have < cycles and self._cycle_start(self.cycles + have) in self._truth:
+            while have < cycles:
+                start = self._cycle_start(self.cycles + have)
+                if start not in self._truth and not self._truth_lost(start):
+                    break
                 have += 1
             cycles = have
         if not cycles:
@@ -389,8 +419,26 @@ class NavigatorRun:
         h_aux = None
         if self.damped:
             starts = [self._cycle_start(self.cycles + k) for k in range(cycles)]
-            h_aux = ecef_to_geodetic(np.array([self._truth[s][0] for s in starts]))[2]
+            if all(s in self._truth for s in starts):
+                h_aux = ecef_to_geodetic(np.array([self._truth[s][0] for s in starts]))[2]
+            else:  # cycle by cycle: a lost truth altitude is the navigator's own
+                sol = None
+                for k, s in enumerate(starts):
+                    h = (ecef_to_geodetic(self._truth[s][0])[2] if s in self._truth
+                         else self._alt)  # fmt: skip
+                    part = self.navigator.run(
+                        da[k * n : (k + 1) * n], dv[k * n : (k + 1) * n], np.array([h])
+                    )
+                    self._alt = float(part.alt[-1])
+                    sol = part if sol is None else _concat([sol, part])
+                self._finish_cycles(sol, da, dv, cycles, used)
+                return
         sol = self.navigator.run(da[:used], dv[:used], h_aux)
+        self._finish_cycles(sol, da, dv, cycles, used)
+
+    def _finish_cycles(self, sol: NavSolution, da: F64, dv: F64, cycles: int, used: int) -> None:
+        n = self.n
+        self._alt = float(sol.alt[-1])
         self._da, self._dv = [da[used:]], [dv[used:]]
         self._buffered -= used
         # Mean body rate relative to the Earth over each cycle: ΣΔα/T_nav - C_E^B ω_ie.
@@ -552,8 +600,10 @@ class NavigationStage:
         self.end_ns = end_ns
         self.earth_frame = earth_frame
         self.info, self.warn, self.error = info, warn, error
+        #: Input events by class (one log line each; counted for the node's summary).
+        self.events = InputEvents(warn, error)
         self.period_ns: int | None = None
-        self.first_imu: tuple[int, Any] | None = None  # (stamp, fields) before T is known
+        self.first_imu: list[tuple[int, Any]] = []  # (stamp, fields) before T is known
         self.imu_buffer: list[tuple[int, F64, F64]] = []  # waiting for a run
         self.truth = _TruthStore(TRUTH_KEEP)
         self.run: NavigatorRun | None = None
@@ -689,6 +739,7 @@ class NavigationStage:
         a message that could change the run (none yet, a gap, a repeat) or that is rejected
         takes the one-message path, after the block before it.
         """
+        is_imu, imu, truth = self._drop_nonfinite(is_imu, imu, truth)
         out: list[NavigatorOutputs] = []
         total = is_imu.size
         imu_before = np.concatenate([[0], np.cumsum(is_imu)])  # Imu rows before item k
@@ -716,6 +767,44 @@ class NavigationStage:
                 out += self._one(int(end), bool(is_imu[end]), imu_before, imu, truth)
             pos = end + 1
         return out + self._advance()
+
+    def _drop_nonfinite(
+        self, is_imu: NDArray[np.bool_], imu: _Decoded | None, truth: _Decoded | None
+    ) -> tuple[NDArray[np.bool_], _Decoded | None, _Decoded | None]:
+        """The input without its messages holding a NaN or an infinity (each stretch logged):
+        a dropped Imu is a lost Imu message (the run ends at its last complete cycle), a
+        dropped truth a lost truth message (the navigator runs on from its own state)."""
+        keep = np.ones(is_imu.size, dtype=bool)
+        parts = []
+        for dec, flag, topic in ((imu, True, self.spec.imu_topic),
+                                 (truth, False, self.spec.truth_topic)):  # fmt: skip
+            if dec is None or dec.fields is None:
+                parts.append(dec)
+                continue
+            bad = nonfinite_rows(dec.fields)
+            if bad is None:
+                parts.append(dec)
+                continue
+            for a, b in stretches(bad):
+                self._nonfinite_event(topic, int(dec.stamps[a]), int(dec.stamps[b]), b - a + 1,
+                                      flag)  # fmt: skip
+            keep[np.flatnonzero(is_imu == flag)[bad]] = False
+            fields = without_rows(dec.fields, bad)
+            parts.append(None if fields is None else self._decoded(fields))
+        if keep.all():
+            return is_imu, imu, truth
+        return is_imu[keep], parts[0], parts[1]
+
+    def _nonfinite_event(self, topic: str, first: int, last: int, n: int, imu: bool) -> None:
+        span = format_stamp(first) + (f"..{format_stamp(last)} ({n} messages)" if n > 1 else "")
+        action = ("treated as lost: the run ends at its last complete cycle, a new one starts "
+                  "from the truth" if imu else
+                  "treated as lost: the navigator runs on from its own state (no error "
+                  "messages at that stamp)")  # fmt: skip
+        self.events(
+            "non-finite", f"{topic}: stamp {span}: NaN or infinity in the message; {action}",
+            error=True,
+        )
 
     def _add_block(
         self,
@@ -756,7 +845,12 @@ class NavigationStage:
             try:
                 fields = cdr.deserialize(cdr.IMU, [imu.payloads[row]])
             except cdr.CdrError as exc:
-                self.error(f"{self.spec.imu_topic}: rejected a malformed Imu: {exc}")
+                self.events("malformed", f"{self.spec.imu_topic}: rejected a malformed Imu: "
+                            f"{exc}", error=True)  # fmt: skip
+                return []
+            if nonfinite_rows(fields) is not None:
+                stamp = int(fields.stamps_ns[0])
+                self._nonfinite_event(self.spec.imu_topic, stamp, stamp, 1, True)
                 return []
             return self._on_imu_fields(fields)
         row = k - int(imu_before[k])
@@ -766,7 +860,12 @@ class NavigationStage:
             try:
                 fields = cdr.deserialize(cdr.ODOMETRY, [truth.payloads[row]])
             except cdr.CdrError as exc:
-                self.error(f"{self.spec.truth_topic}: rejected a malformed Odometry: {exc}")
+                self.events("malformed", f"{self.spec.truth_topic}: rejected a malformed "
+                            f"Odometry: {exc}", error=True)  # fmt: skip
+                return []
+            if nonfinite_rows(fields) is not None:
+                stamp = int(fields.stamps_ns[0])
+                self._nonfinite_event(self.spec.truth_topic, stamp, stamp, 1, False)
                 return []
             one = self._decoded(fields)
             if one.states is None:
@@ -781,9 +880,11 @@ class NavigationStage:
         return []
 
     def _wrong_frame(self, frame_id: str) -> None:
-        self.error(
+        self.events(
+            "wrong frame",
             f"{self.spec.truth_topic}: header.frame_id {frame_id!r} is not the Earth frame "
-            f"{self.earth_frame!r}; dropped"
+            f"{self.earth_frame!r}; dropped (treated as a lost truth message)",
+            error=True,
         )
 
     def _set_period(self, period_ns: int, how: str = "from the stamps") -> bool:
@@ -816,15 +917,30 @@ class NavigationStage:
         """One decoded Imu message; returns the output groups now complete."""
         stamp = int(fields.stamps_ns[0])
         if self.period_ns is None:
+            # T is the first interval seen twice in a row (one interval may span a gap).
             if self.failed:
                 return []
-            if self.first_imu is None or stamp <= self.first_imu[0]:
-                self.first_imu = (stamp, fields)
+            first = self.first_imu
+            if first and stamp <= first[-1][0]:
+                self.events(
+                    "restart" if stamp < first[0][0] else "out-of-order stamp",
+                    f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} does not follow "
+                    f"{format_stamp(first[-1][0])} before the IMU period is known; the period "
+                    "search starts again from it",
+                )
+                first.clear()
+            first.append((stamp, fields))
+            if len(first) < 3:
                 return []
-            if not self._set_period(stamp - self.first_imu[0]):
+            if first[-1][0] - first[-2][0] != first[-2][0] - first[-3][0]:
+                del first[:-2]
                 return []
-            first_stamp, first_fields = self.first_imu
-            self._queue(first_stamp, first_fields)
+            if not self._set_period(first[-1][0] - first[-2][0]):
+                return []
+            held, self.first_imu = first, []
+            for s, f in held:
+                self._queue(s, f)
+            return self._advance()
         self._queue(stamp, fields)
         return self._advance()
 
@@ -838,22 +954,40 @@ class NavigationStage:
                 return
             except StreamError as exc:
                 expected = self.run.next_imu_ns
-                if stamp < expected:
-                    self.warn(f"{self.spec.imu_topic}: {exc}; dropped")
+                restart = stamp < expected - MAX_LATE_CYCLES * self.period_ns
+                if stamp < expected and not restart:
+                    what = "duplicate stamp" if stamp == expected - self.period_ns else (
+                        "out-of-order stamp")  # fmt: skip
+                    self.events(what, f"{self.spec.imu_topic}: {exc}; dropped")
                     return
-                self.warn(
-                    f"{self.spec.imu_topic}: {exc} "
-                    f"({(stamp - expected) // self.period_ns} message(s) missing after "
-                    f"{format_stamp(expected - self.period_ns)}); the run that started at "
-                    f"{format_stamp(self.run.start_ns)} ends at its last complete cycle and a "
-                    "new run starts from the truth before the next message"
-                )
-                last = self._outputs_of(self.run)
-                self._flush_pending = [] if last is None else [last]
+                if restart:
+                    self.events(
+                        "restart",
+                        f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} jumps back from "
+                        f"{format_stamp(expected - self.period_ns)}: the source restarted; "
+                        f"the run that started at {format_stamp(self.run.start_ns)} ends and "
+                        "a new run starts from the truth",
+                    )
+                else:
+                    self.events(
+                        "gap",
+                        f"{self.spec.imu_topic}: {exc} "
+                        f"({(stamp - expected) // self.period_ns} message(s) missing after "
+                        f"{format_stamp(expected - self.period_ns)}); the run that started at "
+                        f"{format_stamp(self.run.start_ns)} ends at its last complete cycle "
+                        "and a new run starts from the truth before the next message",
+                    )
+                self._flush_pending = self._outputs_of(self.run)
                 self.run = None
         if self.imu_buffer and stamp <= self.imu_buffer[-1][0]:
-            self.warn(f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} out of order; dropped")
-            return
+            if stamp < self.imu_buffer[-1][0] - MAX_LATE_CYCLES * self.period_ns:
+                self.imu_buffer.clear()  # the source restarted before a run could start
+            else:
+                self.events(
+                    "out-of-order stamp",
+                    f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} out of order; dropped",
+                )
+                return
         if self.imu_buffer and stamp != self.imu_buffer[-1][0] + self.period_ns:
             self.imu_buffer.clear()  # a gap before any run started: restart the search
         self.imu_buffer.append((stamp, da, dv))
@@ -925,11 +1059,26 @@ class NavigationStage:
         self._try_start()
         if self.run is None:
             return flushed
-        out = self._outputs_of(self.run)
-        return flushed if out is None else [*flushed, out]
+        return [*flushed, *self._outputs_of(self.run)]
 
-    def _outputs_of(self, run: NavigatorRun) -> NavigatorOutputs | None:
+    def _outputs_of(self, run: NavigatorRun) -> list[NavigatorOutputs]:
+        groups = []
+        while True:
+            out = self._output_group(run)
+            if out is None:
+                return groups
+            groups.append(out)
+
+    def _output_group(self, run: NavigatorRun) -> NavigatorOutputs | None:
         out = run.outputs()
+        for stamp in run.truth_lost:
+            self.events(
+                "truth lost",
+                f"{self.spec.truth_topic}: no truth at output stamp {format_stamp(stamp)} (a "
+                "later one arrived); the output is published without its error messages and "
+                "the navigator runs on from its own state",
+            )
+        run.truth_lost.clear()
         if out is None:
             return None
         self.published_outputs += len(out)

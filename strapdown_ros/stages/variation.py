@@ -26,6 +26,7 @@ from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
+from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
 
 __all__ = [
     "IMU",
@@ -292,6 +293,8 @@ class VariationStage:
         self.period_ns = scenario.period_ns
         self.earth_frame = scenario.recording.frames["earth"]
         self.info, self.warn, self.error = info, warn, error
+        #: Input events by class (one log line each; counted for the node's summary).
+        self.events = InputEvents(warn, error)
         self.topics = {
             IMU: scenario.recording.topics["reference_imu"],
             ODOM: scenario.recording.topics["reference_odom"],
@@ -432,8 +435,32 @@ class VariationStage:
 
     # -- checks --------------------------------------------------------------------------------
 
+    def _drop_nonfinite(self, inp: _Input) -> _Input:
+        """``inp`` without its messages holding a NaN or an infinity (each stretch logged); a
+        dropped message is a lost one (the run restarts after it)."""
+        if inp.fields is None:
+            return inp
+        bad = nonfinite_rows(inp.fields)
+        if bad is None:
+            return inp
+        stamps = np.asarray(inp.fields.stamps_ns, dtype=np.int64)
+        for a, b in stretches(bad):
+            span = format_stamp(int(stamps[a]))
+            if b > a:
+                span += f"..{format_stamp(int(stamps[b]))} ({b - a + 1} messages)"
+            self.events(
+                "non-finite",
+                f"{self.topics[inp.kind]}: stamp {span}: NaN or infinity in the message; "
+                "dropped (a lost message: the solution restarts after it)",
+                error=True,
+            )
+        keep = np.flatnonzero(~bad)
+        payloads = None if inp.payloads is None else [inp.payloads[k] for k in keep]
+        return _Input(inp.kind, without_rows(inp.fields, bad), payloads, inp.positions[keep])
+
     def _ingest(self, inputs: list[_Input]) -> None:
         """Take the messages in arrival order: the consistent ones in bulk, others one by one."""
+        inputs = [self._drop_nonfinite(i) for i in inputs if len(i)]
         inputs = [i for i in inputs if len(i)]
         done = {i.kind: 0 for i in inputs}
         while True:
@@ -554,15 +581,24 @@ class VariationStage:
             try:
                 msg = cdr.deserialize(msgtype, [payload])  # type: ignore[list-item]
             except cdr.CdrError as exc:
-                self.error(f"{topic}: rejected a message that is not a {msgtype} of the "
-                           f"expected layout: {exc}")  # fmt: skip
+                self.events("malformed", f"{topic}: rejected a message that is not a {msgtype} "
+                            f"of the expected layout: {exc}", error=True)  # fmt: skip
                 return
             self.timing.decode_wall += time.perf_counter() - t
             self.timing.decoded += 1
+            if nonfinite_rows(msg) is not None:
+                self.events(
+                    "non-finite",
+                    f"{topic}: stamp {format_stamp(int(msg.stamps_ns[0]))}: NaN or infinity in "
+                    "the message; dropped (a lost message: the solution restarts after it)",
+                    error=True,
+                )
+                return
         stamp = int(msg.stamps_ns[0])
         offset = stamp - self.t0_ns
         if offset < 0 or offset % self.period_ns:
-            self.warn(
+            self.events(
+                "off-grid stamp",
                 f"{topic}: stamp {format_stamp(stamp)} is not on the scenario's cycle grid "
                 f"(start {format_stamp(self.t0_ns)}, T = {self.period_ns} ns); dropped"
             )
@@ -585,16 +621,17 @@ class VariationStage:
             self._remember(kind, m, msg, payload)
         elif m == last:
             if self._same(kind, msg, payload):
-                self.warn(f"{topic}: duplicate stamp {format_stamp(stamp)} (cycle {m}), "
-                          "identical content; dropped")  # fmt: skip
+                self.events("duplicate stamp", f"{topic}: duplicate stamp "
+                            f"{format_stamp(stamp)} (cycle {m}), identical content; dropped")
                 return
-            self.warn(f"{topic}: duplicate stamp {format_stamp(stamp)} (cycle {m}) "
-                      "with different content; both dropped")  # fmt: skip
+            self.events("duplicate stamp", f"{topic}: duplicate stamp {format_stamp(stamp)} "
+                        f"(cycle {m}) with different content; both dropped")  # fmt: skip
             self.buffer[kind].discard(m)
             self.restart(self._first_run_cycle(kind, m + 1), f"{topic}: duplicate")
             return
         elif m < last - MAX_LATE_CYCLES:
-            self.warn(
+            self.events(
+                "restart",
                 f"{topic}: stamp {format_stamp(stamp)} (cycle {m}) jumps back "
                 f"{last - m} cycles from {format_stamp(self.t0_ns + last * self.period_ns)} "
                 f"(cycle {last}): the input restarted; starting afresh"
@@ -603,13 +640,15 @@ class VariationStage:
             self._remember(kind, m, msg, payload)
             self.restart(self._first_run_cycle(kind, m), f"first message on {topic} after the jump")
         elif m < last:
-            self.warn(
+            self.events(
+                "out-of-order stamp",
                 f"{topic}: out-of-order stamp {format_stamp(stamp)} (cycle {m}) after "
                 f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); dropped"
             )
             return
         else:
-            self.warn(
+            self.events(
+                "gap",
                 f"{topic}: gap: stamp {format_stamp(stamp)} (cycle {m}) follows "
                 f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); "
                 f"{m - last - 1} cycle(s) missing"
@@ -618,10 +657,12 @@ class VariationStage:
             self.restart(self._first_run_cycle(kind, m), f"{topic}: gap")
 
         if kind == ODOM and msg.frame_id != self.earth_frame:
-            self.error(
+            self.events(
+                "wrong frame",
                 f"{topic}: {self.describe(m)}: header.frame_id {msg.frame_id!r} is not the "
                 f"Earth frame {self.earth_frame!r} (recording.frames.earth); rejected, the "
-                f"solution restarts at cycle {m + 1}"
+                f"solution restarts at cycle {m + 1}",
+                error=True,
             )
             self.restart(m + 1, "", log=False)
             return
@@ -639,10 +680,12 @@ class VariationStage:
         imu = self.buffer[IMU].frames(m)
         odom = self.buffer[ODOM].frames(m)
         if imu is not None and odom is not None and imu.frame_id != odom.child_frame_id:
-            self.error(
+            self.events(
+                "wrong frame",
                 f"{self.describe(m)}: Imu frame_id {imu.frame_id!r} differs from the Odometry "
                 f"child_frame_id {odom.child_frame_id!r}: the reference messages do not "
-                f"describe one body; rejected, the solution restarts at cycle {m + 1}"
+                f"describe one body; rejected, the solution restarts at cycle {m + 1}",
+                error=True,
             )
             self.buffer[IMU].discard(m)
             self.buffer[ODOM].discard(m)
@@ -662,9 +705,11 @@ class VariationStage:
                         f"reference_imu {expected!r}; the output carries the scenario's frames"
                     )
             elif frame != self.body_frame:
-                self.error(
+                self.events(
+                    "wrong frame",
                     f"{self.describe(m)}: {name} {frame!r} differs from the run's body frame "
-                    f"{self.body_frame!r}; rejected, the solution restarts at cycle {m + 1}"
+                    f"{self.body_frame!r}; rejected, the solution restarts at cycle {m + 1}",
+                    error=True,
                 )
                 self.buffer[IMU].discard(m)
                 self.buffer[ODOM].discard(m)
