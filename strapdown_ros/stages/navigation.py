@@ -604,6 +604,7 @@ class NavigationStage:
         self.events = InputEvents(warn, error)
         self.period_ns: int | None = None
         self.first_imu: list[tuple[int, Any]] = []  # (stamp, fields) before T is known
+        self._dropped_imu: set[int] = set()  # IMU stamps dropped as non-finite (logged once)
         self.imu_buffer: list[tuple[int, F64, F64]] = []  # waiting for a run
         self.truth = _TruthStore(TRUTH_KEEP)
         self.run: NavigatorRun | None = None
@@ -796,6 +797,8 @@ class NavigationStage:
         return is_imu[keep], parts[0], parts[1]
 
     def _nonfinite_event(self, topic: str, first: int, last: int, n: int, imu: bool) -> None:
+        if imu and self.period_ns:
+            self._dropped_imu.update(range(first, last + 1, self.period_ns))
         span = format_stamp(first) + (f"..{format_stamp(last)} ({n} messages)" if n > 1 else "")
         action = ("treated as lost: the run ends at its last complete cycle, a new one starts "
                   "from the truth" if imu else
@@ -969,14 +972,20 @@ class NavigationStage:
                         "a new run starts from the truth",
                     )
                 else:
-                    self.events(
-                        "gap",
-                        f"{self.spec.imu_topic}: {exc} "
-                        f"({(stamp - expected) // self.period_ns} message(s) missing after "
-                        f"{format_stamp(expected - self.period_ns)}); the run that started at "
-                        f"{format_stamp(self.run.start_ns)} ends at its last complete cycle "
-                        "and a new run starts from the truth before the next message",
-                    )
+                    gap = f"{self.spec.imu_topic}: {exc} "
+                    if expected in self._dropped_imu:  # already logged as non-finite
+                        self._dropped_imu.discard(expected)
+                        self.info(gap + "(the message dropped above); a new run starts from "
+                                  "the truth")  # fmt: skip
+                    else:
+                        self.events(
+                            "gap",
+                            gap + f"({(stamp - expected) // self.period_ns} message(s) missing "
+                            f"after {format_stamp(expected - self.period_ns)}); the run that "
+                            f"started at {format_stamp(self.run.start_ns)} ends at its last "
+                            "complete cycle and a new run starts from the truth before the next "
+                            "message",
+                        )
                 self._flush_pending = self._outputs_of(self.run)
                 self.run = None
         if self.imu_buffer and stamp <= self.imu_buffer[-1][0]:
