@@ -25,8 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core import _compiled as _k
 from strapdown_ros.core.exact_update import g_matrices
 from strapdown_ros.core.rotations import rotvec_from_dcm
+from strapdown_ros.core.series import rotation_coefficients
 
 __all__ = [
     "Method2Solution",
@@ -63,7 +65,7 @@ def attitude_increments(c_b_e0: ArrayLike) -> Array:
         Δα_m (rad, body axes), m = 1..M; exact at any angle up to π per cycle.
     """
     c = np.asarray(c_b_e0, dtype=np.float64)
-    return rotvec_from_dcm(_t(c[:-1]) @ c[1:])
+    return rotvec_from_dcm(_k.matmul33(c[:-1], c[1:], transpose_a=True))
 
 
 def _inv3(m: Array) -> Array:
@@ -288,8 +290,12 @@ def method2(
         raise ValueError("r_e0 and v_e0 must have one row per attitude sample")
     t = float(period)
     dalpha = attitude_increments(c)
-    gc, gv, gr = g_matrices(dalpha)  # gc unused: C comes from the constraint (eq. (8))
-    del gc
+    fast = _k.HAVE_NUMBA and n_cycles > 1
+    if fast:  # G_V, G_R formed inside the kernel
+        _, f2, f3, f4 = rotation_coefficients(np.linalg.norm(dalpha, axis=-1))
+    else:
+        gc, gv, gr = g_matrices(dalpha)  # gc unused: C comes from the constraint (eq. (8))
+        del gc
     m_pairs = n_cycles // 2
     e0 = np.arange(m_pairs) * 2  # 2n-2
     od = e0 + 1  # 2n-1
@@ -309,22 +315,43 @@ def method2(
     disp = None if displacement is None else np.asarray(displacement, dtype=np.float64)
     if disp is not None and disp.shape != (m_pairs, 3):
         raise ValueError(f"displacement must have shape ({m_pairs}, 3), got {disp.shape}")
-    system = PairSystem(
-        c[e0], c[od], gv[od - 1], gr[od - 1], gv[e1 - 1], gr[e1 - 1],
-        r[e0], r[e1], v[e0], v[e1], g[e0], g[e1], t, disp,
-    )  # fmt: skip
-    for _ in range(max(1, iterations)):
-        dv_odd, dv_even = system.solve(g_odd)
-        v_odd, r_odd = system.odd_state(dv_odd, g_odd)
-        g_odd = grav(r_odd, od)
+    if fast:
+        # The same arithmetic in one compiled pass per pair (bit-identical, core/_compiled.py).
+        cgv1, cgr1, b_odd, b_even, k_odd, k_even = (np.empty((m_pairs, 3, 3)) for _ in range(6))
+        num_odd, num_even, dv_odd, dv_even, v_odd, r_odd = (
+            np.empty((m_pairs, 3)) for _ in range(6)
+        )
+        use_disp = disp is not None
+        _k.pair_system_kernel(
+            np.ascontiguousarray(c), dalpha, f2, f3, f4, r, v, g,
+            np.ascontiguousarray(disp) if use_disp else r[:0], use_disp, t,
+            cgv1, cgr1, b_odd, b_even, num_odd, num_even, k_odd, k_even,
+        )  # fmt: skip
+        for _ in range(max(1, iterations)):
+            _k.pair_solve_kernel(
+                cgv1, cgr1, b_odd, b_even, num_odd, num_even, k_odd, k_even,
+                r, v, g, np.ascontiguousarray(g_odd, dtype=np.float64), t,
+                dv_odd, dv_even, v_odd, r_odd,
+            )  # fmt: skip
+            g_odd = grav(r_odd, od)
+    else:
+        system = PairSystem(
+            c[e0], c[od], gv[od - 1], gr[od - 1], gv[e1 - 1], gr[e1 - 1],
+            r[e0], r[e1], v[e0], v[e1], g[e0], g[e1], t, disp,
+        )  # fmt: skip
+        for _ in range(max(1, iterations)):
+            dv_odd, dv_even = system.solve(g_odd)
+            v_odd, r_odd = system.odd_state(dv_odd, g_odd)
+            g_odd = grav(r_odd, od)
     dv[od - 1], dv[e1 - 1] = dv_odd, dv_even
     r[od], v[od], g[od] = r_odd, v_odd, g_odd
 
     if n_cycles % 2:  # final single cycle: eq. (9), position constraint at m = M
         m = n_cycles
+        _, gv_m, gr_m = (x[0] for x in g_matrices(dalpha[m - 1 : m]))
         r[m] = r_con[m]
         g[m] = grav(r[m], m)
         rhs = r[m] - r[m - 1] - v[m - 1] * t - (g[m] + 2.0 * g[m - 1]) * t * t / 6.0
-        dv[m - 1] = np.linalg.solve(c[m - 1] @ gr[m - 1], rhs / t)
-        v[m] = v[m - 1] + c[m - 1] @ (gv[m - 1] @ dv[m - 1]) + 0.5 * (g[m] + g[m - 1]) * t
+        dv[m - 1] = np.linalg.solve(c[m - 1] @ gr_m, rhs / t)
+        v[m] = v[m - 1] + c[m - 1] @ (gv_m @ dv[m - 1]) + 0.5 * (g[m] + g[m - 1]) * t
     return Method2Solution(dalpha=dalpha, dv=dv, c_b_e0=c.copy(), v_e0=v, r_e0=r, g_e0=g)

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from strapdown_ros.core._compiled import matmul33
 from strapdown_ros.core.exact_update import g_matrices
 from strapdown_ros.core.gravity import gravitation, gravitation_first_order
 from strapdown_ros.core.method2 import attitude_increments, method2
@@ -121,7 +122,7 @@ def variation_constraints(
             f"(eq. (10) looks one cycle ahead); got {reference.cycles + 1} and {len(offsets)}"
         )
     c_ref = reference.c_b_e0[:n]
-    c_var = c_ref @ offsets.c_bvar_bref[:n]  # eq. (5)
+    c_var = matmul33(c_ref, offsets.c_bvar_bref[:n])  # eq. (5)
     body = (
         np.einsum("nji,nj->ni", offsets.c_bvar_bref[:n], offsets.lever_arm[:n])
         + offsets.displacement[:n]
@@ -294,8 +295,8 @@ def _method1(
         - con.s_e0[:cycles]
     )  # R_m - R_{m-1}, m = 1..cycles
     c = con.c_b_e0
-    cgr_inv = np.linalg.inv(c[:-1] @ gr)
-    cgv = c[:-1] @ gv
+    cgr_inv = np.linalg.inv(matmul33(c[:-1], gr))
+    cgv = matmul33(c[:-1], gv)
     rhs_fixed = dr - (g[1:] + 2.0 * g[:-1]) * (t * t / 6.0)
     g_avg = 0.5 * (g[1:] + g[:-1]) * t
     v = np.empty((cycles + 1, 3))

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core._compiled import matmul33
 from strapdown_ros.core.earth import (
     OMEGA_IE,
     dcm_e0_to_ecef,
@@ -336,14 +337,17 @@ def samples_from_arrays(
     elif q_b_e is not None:
         cbe = dcm_from_quat(_arr("q_b_e", q_b_e, n, 4))
     elif c_b_n is not None:
-        cbe = c_n_e @ _arr("c_b_n", c_b_n, n, (3, 3))
+        cbe = matmul33(c_n_e, _arr("c_b_n", c_b_n, n, (3, 3)))
     elif q_b_n is not None:
-        cbe = c_n_e @ dcm_from_quat(_arr("q_b_n", q_b_n, n, 4))
+        cbe = matmul33(c_n_e, dcm_from_quat(_arr("q_b_n", q_b_n, n, 4)))
     elif roll is not None:
-        cbe = c_n_e @ dcm_from_euler(
-            _arr("roll", roll, n, None),
-            _arr("pitch", pitch, n, None),
-            _arr("heading", heading, n, None),
+        cbe = matmul33(
+            c_n_e,
+            dcm_from_euler(
+                _arr("roll", roll, n, None),
+                _arr("pitch", pitch, n, None),
+                _arr("heading", heading, n, None),
+            ),
         )
     if cbe is not None and np.any(np.linalg.norm(cbe.reshape(n, 9), axis=1) < 1e-6):
         raise ValueError("attitude: zero quaternion or matrix in the attitude samples")
@@ -561,9 +565,11 @@ class SamplesTrajectory:
         else:
             r, v = self._pos(tl), self._pos(tl, 1)
             lat, lon, _ = ecef_to_geodetic(r)
-            c_b_e = dcm_ned_to_ecef(lat, lon) @ _derived_c_b_n(ned_velocity_from_ecef(lat, lon, v))
+            c_b_e = matmul33(
+                dcm_ned_to_ecef(lat, lon), _derived_c_b_n(ned_velocity_from_ecef(lat, lon, v))
+            )
             self.attitude_source = "derived"
-        q_e0 = quat_from_dcm(dcm_ecef_to_e0(tl) @ c_b_e)
+        q_e0 = quat_from_dcm(matmul33(dcm_ecef_to_e0(tl), c_b_e))
         omega = samples.omega_b
         if omega is not None and samples.omega_frame == "earth":
             omega = omega + OMEGA_IE * c_b_e[:, 2, :]  # ω_ib = ω_eb + C_E^B ω_ie^E
