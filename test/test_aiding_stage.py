@@ -369,3 +369,32 @@ def test_expected_counts(ideal_bag, scenario):
     expected = aiding_expected_counts(scenario, cycles, _spec(_ideal()))
     assert expected == {t: len(ideal_bag.topics[t]) for t in expected}
     assert set(expected) == {"/gnss/fix", "/gnss/vel", "/baro/pressure", "/mag", "/wheel/twist"}
+
+
+def test_nonfinite_and_out_of_order_truth_dropped(scenario, reference):
+    """A NaN in a truth message drops it (its epoch skipped, later ones unchanged); a repeated
+    or older message is dropped; warnings say so."""
+    import dataclasses
+
+    payloads = _odom_payloads(scenario, reference)[:2001]
+    doc = _noisy()
+    doc["wheel_odometer"]["pulses_per_m"] = 0.0  # the encoder would miss the epoch's distance
+    spec = _spec(doc)
+    full = _run(scenario, spec, [payloads])
+    odom = cdr.deserialize(cdr.ODOMETRY, payloads)
+    position = np.array(odom.position)
+    bad = 400  # t = 2.0 s: an epoch of every sensor
+    position[bad, 0] = np.nan
+    broken = cdr.serialize(dataclasses.replace(odom, position=position))
+    warnings: list[str] = []
+    stream = AidingStream(scenario, spec, warn=warnings.append)
+    out: dict[str, list[bytes]] = {}
+    for chunk in (broken[:1000], broken[990:1000], broken[1000:]):  # NaN; then repeats
+        for b in stream.on_payloads(chunk):
+            out.setdefault(b.topic, []).extend(b.payloads)
+    assert any("NaN" in w for w in warnings) and any("not after" in w for w in warnings)
+    t_bad = int(odom.stamps_ns[bad])
+    for topic, (pay, _) in full.items():
+        stamps = cdr.deserialize(topic_type(topic), pay).stamps_ns
+        want = [p for p, t in zip(pay, stamps, strict=True) if t != t_bad]
+        assert out[topic] == want, topic

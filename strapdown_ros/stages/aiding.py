@@ -58,6 +58,7 @@ from strapdown_ros.messages import (
     navsatfix_fields_from_geodetic,
     odometry_state,
 )
+from strapdown_ros.stages.checks import nonfinite_rows, without_rows
 
 __all__ = [
     "AIDING_MSGTYPES",
@@ -487,21 +488,36 @@ class AidingStream:
         self.warn = warn
 
     def feed_fields(self, odom: OdometryFields) -> list[AidingOutput]:
-        """The aiding messages due after the truth messages ``odom`` (consecutive stamps).
+        """The aiding messages due after the truth messages ``odom``.
 
-        Truth stamps not after the last one fed are dropped (logged).
+        Input faults (docs/reliability.md): a truth message with a NaN or an infinity, or
+        whose stamp is not after an earlier one, is dropped (logged); the epochs it carried are
+        skipped like missing ones.
         """
-        stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
-        if np.any(np.diff(stamps) <= 0):
-            raise ValueError(f"{self.truth_topic}: truth stamps must increase within a chunk")
-        if self.last_truth_ns is not None and len(stamps) and stamps[0] <= self.last_truth_ns:
-            first = int(np.searchsorted(stamps, self.last_truth_ns, side="right"))
-            self.warn(
-                f"{self.truth_topic}: {first} truth message(s) not after the last one; dropped"
-            )
-            odom, stamps = odom.rows(first, len(stamps)), stamps[first:]
-        if not len(stamps):
+        if not len(odom):
             return []
+        bad = nonfinite_rows(odom)
+        if bad is not None:
+            self.warn(
+                f"{self.truth_topic}: {int(bad.sum())} truth message(s) with a NaN or an "
+                "infinity dropped (their epochs are skipped)"
+            )
+            odom = without_rows(odom, bad)
+            if odom is None:
+                return []
+        stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
+        last = self.last_truth_ns if self.last_truth_ns is not None else np.iinfo(np.int64).min
+        before = np.maximum.accumulate(np.concatenate([[last], stamps]))[:-1]
+        late = stamps <= before  # repeated or out of order
+        if np.any(late):
+            self.warn(
+                f"{self.truth_topic}: {int(late.sum())} truth message(s) not after an earlier "
+                "one; dropped"
+            )
+            odom = without_rows(odom, late)
+            if odom is None:
+                return []
+            stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
         self.last_truth_ns = int(stamps[-1])
         # The truth state of the messages that are an epoch of some sensor (row by row: the
         # same numbers whatever rows are decoded together).
