@@ -78,8 +78,19 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--storage", choices=("mcap", "sqlite3"), default=None)
     run.add_argument("--force", action="store_true", help="overwrite an existing output")
     run.add_argument(
-        "--rate-factor", type=float, default=1.0, help="speed over real time (default 1)"
-    )
+        "--rate-factor", type=float, default=1.0,
+        help="speed over real time (default 1: wall-clock pace, loss reported); above 1 the "
+        "run is flow-controlled (lossless, at most this fast)",
+    )  # fmt: skip
+    run.add_argument(
+        "--unpaced", action="store_true",
+        help="as fast as the slowest node allows (flow-controlled, lossless); prints the "
+        "throughput reached",
+    )  # fmt: skip
+    run.add_argument(
+        "--flow-control", choices=("auto", "on", "off"), default="auto",
+        help="auto (default): on with --unpaced or --rate-factor > 1, off in real time",
+    )  # fmt: skip
     run.add_argument(
         "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: private, from pid)"
     )
@@ -265,8 +276,10 @@ def _run(args: argparse.Namespace) -> int:
 
     result = _live("run", lambda: run_pipeline(
         args.scenario, args.out, overrides=args.overrides, duration_s=args.duration,
-        storage=args.storage, force=args.force, rate_factor=args.rate_factor,
+        storage=args.storage, force=args.force,
+        rate_factor=0.0 if args.unpaced else args.rate_factor,
         domain_id=args.domain_id, timeout_s=args.timeout,
+        flow_control={"auto": None, "on": True, "off": False}[args.flow_control],
     ))  # fmt: skip
     if isinstance(result, int):
         return result

@@ -10,6 +10,13 @@ then publishes the scenario paced at ``rate_factor`` x real time; every node exi
 message, the recorder (``stop_when_done``) when all its publishers are gone, and the recorded
 message counts are checked against what the scenario produces.
 
+Runs not tied to the wall clock (``rate_factor`` > 1, or <= 0: unpaced, as fast as the slowest
+node allows) are flow-controlled (:mod:`strapdown_ros.nodes.flow`): the recorder and the nodes
+report their progress and the trajectory node never gets more than a window ahead of any
+consumer, so they are lossless by construction; the throughput reached is reported. Real-time
+and slower runs (0 < ``rate_factor`` <= 1, hardware in the loop) keep the wall-clock pace and
+any loss shows as a count mismatch.
+
 Children die with this process (``PR_SET_PDEATHSIG`` on Linux); when one fails, the others are
 stopped (SIGTERM, then SIGKILL) and its log is printed. Logs: ``<out>.logs/<node>.log``.
 """
@@ -18,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -65,6 +73,14 @@ class PipelineResult:
     elapsed_s: float = 0.0
     duration_s: float = 0.0
     domain_id: int = 0
+    rate_factor: float = 1.0
+    flow_control: bool = False
+    #: Wall seconds from the trajectory node's first to its last message (0: unknown).
+    publish_s: float = 0.0
+    #: Seconds the trajectory node waited for its consumers (flow control).
+    stalled_s: float = 0.0
+    #: The trajectory node's pacing line (paced runs without flow control).
+    pacing: str = ""
 
     @property
     def lost(self) -> dict[str, int]:
@@ -90,7 +106,28 @@ class PipelineResult:
         extra = sorted(set(self.counts) - set(self.expected))
         lines += [f"  {t}: {self.counts[t]} (not expected)" for t in extra]
         lines.append("zero loss" if not self.lost else f"LOST OR EXTRA: {self.lost}")
+        lines.append(self.throughput())
         return "\n".join(lines)
+
+    def throughput(self) -> str:
+        """What the run reached: messages and IMU cycles per second of publishing, speed-up."""
+        mode = (
+            "unpaced" if self.rate_factor <= 0 else f"rate_factor {self.rate_factor:g}"
+        ) + (", flow control" if self.flow_control else ", wall-clock pace")
+        if self.publish_s <= 0:
+            return f"throughput: unknown ({mode})"
+        total = sum(self.counts.values())
+        text = (
+            f"throughput: {total / self.publish_s:,.0f} msgs/s recorded, "
+            f"{self.duration_s / self.publish_s:.2f}x real time ({mode}; {self.duration_s:.3f} s "
+            f"of data published in {self.publish_s:.2f} s"
+        )
+        if self.flow_control:
+            text += f", {self.stalled_s:.2f} s of it waiting for the consumers"
+        text += ")"
+        if self.pacing:
+            text += f"\npacing:    {self.pacing}"
+        return text
 
 
 def expected_counts(scenario: Scenario) -> dict[str, int]:
@@ -244,14 +281,19 @@ def run_pipeline(
     domain_id: int | None = None,
     timeout_s: float | None = None,
     progress: bool = True,
+    flow_control: bool | None = None,
 ) -> PipelineResult:
     """Run the scenario live and record it into ``out``; see the module docstring.
+
+    ``rate_factor`` <= 0: unpaced. ``flow_control`` None: on when ``rate_factor`` > 1 or
+    unpaced (the runs not tied to the wall clock), off for (slower than) real time.
 
     Raises
     ------
     PipelineError
         A node failed (its log attached), or the pipeline did not finish within ``timeout_s``
-        (default: the data duration / ``rate_factor`` + 120 s).
+        (default: the data duration / ``rate_factor`` + 120 s; unpaced: 5 x the data duration
+        + 120 s).
     FileExistsError
         ``out`` exists and ``force`` is false.
     """
@@ -266,8 +308,10 @@ def run_pipeline(
     expected = expected_counts(scenario)
     topics = scenario.recording.topics
     data_s = (max(expected.get(topics["reference_odom"], 1), 1) - 1) * scenario.period_ns * 1e-9
+    if flow_control is None:
+        flow_control = rate_factor > 1 or rate_factor <= 0
     if timeout_s is None:
-        timeout_s = data_s / max(rate_factor, 1e-3) + 120.0
+        timeout_s = (data_s / rate_factor if rate_factor > 0 else 5 * data_s) + 120.0
     domain = _private_domain() if domain_id is None else int(domain_id)
     env, log_dir = _child_env(domain), _log_dir(out)
 
@@ -311,9 +355,15 @@ def run_pipeline(
         if progress:
             print(f"[run] {text}", file=sys.stderr, flush=True)
 
-    deep = "qos_depth:=10000"
+    node_params = ["qos_depth:=10000"]
+    flow_nodes = ["bag_recorder"]
+    if flow_control:
+        # The nodes may wait for the slowest consumer: no idle stop in the middle of a run.
+        node_params += ["report_progress:=true", "idle_timeout_s:=120.0"]
     try:
         rec_params = [f"output:={out}", "stop_when_done:=true", "force:=" + str(force).lower()]
+        if flow_control:
+            rec_params.append("report_progress:=true")
         if storage:
             rec_params.append(f"storage:={storage}")
         say(f"ROS_DOMAIN_ID={domain}; logs in {log_dir}")
@@ -323,12 +373,14 @@ def run_pipeline(
                 topics[f"navigator_{k}"]
                 for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude")
             ]
-            node = start("navigator_node", per_topic(outs), deep)
+            node = start("navigator_node", per_topic(outs), *node_params)
+            flow_nodes.append("navigator_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("navigator_node subscribed")
         if scenario.imu_errors is not None:
             measured = scenario.imu_errors.topics(topics)[1]
-            node = start("imu_model_node", per_topic([measured]), deep)
+            node = start("imu_model_node", per_topic([measured]), *node_params)
+            flow_nodes.append("imu_model_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("imu_model_node subscribed")
         if scenario.variation is not None:
@@ -342,7 +394,8 @@ def run_pipeline(
                     "variation_reference_odom",
                 )
             ]
-            node = start("variation_node", per_topic(outs), deep)
+            node = start("variation_node", per_topic(outs), *node_params)
+            flow_nodes.append("variation_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("variation_node subscribed")
         traj_topics = [topics[k] for k in ("reference_imu", "reference_odom", "reference_fix")]
@@ -350,10 +403,15 @@ def run_pipeline(
         if scenario.recording.clock:
             traj_topics.append(topics["clock"])
             time_source = "sim"
-        say(f"trajectory_node: {data_s:g} s of data at rate_factor {rate_factor:g}")
+        pace = f"rate_factor {rate_factor:g}" if rate_factor > 0 else "unpaced"
+        traj_params = [f"rate_factor:={float(rate_factor)}", "qos_depth:=10000"]
+        if flow_control:
+            pace += ", flow control on " + ", ".join(flow_nodes)
+            traj_params.append("flow_nodes:=[" + ",".join(f"'{n}'" for n in flow_nodes) + "]")
+        say(f"trajectory_node: {data_s:g} s of data, {pace}")
         traj = start(
-            "trajectory_node", per_topic(traj_topics), f"rate_factor:={float(rate_factor)}",
-            f"time_source:={time_source}", "wait_for_all_topics:=false", deep,
+            "trajectory_node", per_topic(traj_topics), f"time_source:={time_source}",
+            "wait_for_all_topics:=false", *traj_params,
         )  # fmt: skip
         deadline = time.monotonic() + timeout_s
         recorder = children[0]
@@ -389,14 +447,32 @@ def run_pipeline(
         _reap(children)
     contents = read_bag(out)
     counts = {t: len(d) for t, d in contents.topics.items()}
-    return PipelineResult(
+    result = PipelineResult(
         out=out,
         counts=counts,
         expected=expected,
         elapsed_s=time.monotonic() - t_start,
         duration_s=data_s,
         domain_id=domain,
+        rate_factor=rate_factor,
+        flow_control=flow_control,
     )
+    _read_trajectory_summary(log_dir / "trajectory_node.log", result)
+    return result
+
+
+def _read_trajectory_summary(path: Path, result: PipelineResult) -> None:
+    """Fill ``publish_s``, ``stalled_s`` and ``pacing`` from trajectory_node's summary."""
+    try:
+        text = path.read_text(errors="replace")
+    except OSError:
+        return
+    if m := re.search(r"s of data in ([0-9.]+) s of wall time", text):
+        result.publish_s = float(m.group(1))
+    if m := re.search(r"flow control: waited ([0-9.]+) s", text):
+        result.stalled_s = float(m.group(1))
+    if m := re.search(r"(max lateness [^\n]*)", text):
+        result.pacing = m.group(1)
 
 
 @dataclass

@@ -10,7 +10,9 @@ are by overriding the hooks below.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable
+from operator import itemgetter
 from typing import Any
 
 import rclpy
@@ -23,6 +25,7 @@ from strapdown_ros.nodes._common import (
     InputBatch,
     RunControl,
     declare_batch_period,
+    declare_bool,
     declare_run_control,
     drain_publishers,
     wait_for_subscriptions,
@@ -57,6 +60,13 @@ class BatchedInputNode(Node):
         self.run_control = declare_run_control(self, done)
         self.output_pubs: dict[str, Any] = {}
         self.counts: dict[str, int] = {}
+        self.report_progress = declare_bool(
+            self, "report_progress", False,
+            "publish the input taken / output published per topic for flow control "
+            "(nodes/flow.py)",
+        )  # fmt: skip
+        self.taken: dict[str, int] = {}  # input topic → messages processed (progress reports)
+        self._callback_kinds: dict[int, Any] = {}  # id(callback) → kind
 
     def add_output(self, topic: str, msg_class: type, qos: Any) -> None:
         """Create the publisher of output ``topic`` (raises what ``create_publisher`` raises)."""
@@ -69,7 +79,16 @@ class BatchedInputNode(Node):
         def on_message(payload: bytes) -> None:
             self.batch.add((kind, payload))
 
+        self._callback_kinds[id(on_message)] = kind
         return on_message
+
+    def _input_topics(self) -> dict[Any, str]:
+        """kind → input topic of the subscriptions made with :meth:`_buffer` callbacks."""
+        return {
+            self._callback_kinds[id(s.callback)]: s.topic_name
+            for s in self.subscriptions
+            if id(s.callback) in self._callback_kinds
+        }
 
     def _publish(self, items: Iterable[tuple[str, int, bytes]]) -> None:
         """Publish serialized outputs ``(topic, stamp_ns, payload)`` in order; count them."""
@@ -159,6 +178,14 @@ class BatchedInputNode(Node):
             ):  # fmt: skip
                 return EXIT_FAILURE
         self.get_logger().info(f"subscribed to {self._subscribe()}")
+        reporter = None
+        if self.report_progress:
+            from strapdown_ros.nodes.flow import ProgressReporter
+
+            topic_of = self._input_topics()
+            self.taken = dict.fromkeys(topic_of.values(), 0)
+            reporter = ProgressReporter(self, lambda: (self.taken, self.counts))
+            reporter.report()
         batch = self.batch
         batch.last_input = time.monotonic()
         wall_start: float | None = None
@@ -170,7 +197,13 @@ class BatchedInputNode(Node):
             # fell behind takes longer batches (same output), so it catches up by itself.
             batch.spin(spin)
             if batch.due():
-                self._process(batch.take())
+                items = batch.take()
+                self._process(items)
+                if reporter is not None:
+                    for kind, n in Counter(map(itemgetter(0), items)).items():
+                        self.taken[topic_of[kind]] += n
+            if reporter is not None:
+                reporter.maybe_report()
             failure = self._failure()
             if failure:
                 self.get_logger().error(f"stopping: {failure}")
@@ -189,6 +222,8 @@ class BatchedInputNode(Node):
         cpu = time.process_time() - cpu_start if wall_start is not None else 0.0
         if not rclpy.ok(context=self.context):
             raise ExternalShutdownException()  # run_node logs interrupted_summary()
+        if reporter is not None:
+            reporter.report()
         if status == EXIT_OK:
             self.get_logger().info(self._full_summary(wall, cpu))
         drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)

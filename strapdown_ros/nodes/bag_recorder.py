@@ -112,6 +112,10 @@ class BagRecorder(SignalStop, Node):
         self.drain_timeout_s = declare_number(
             self, "drain_timeout_s", 2.0, "at a stop, longest time taking queued messages"
         )
+        self.report_progress = declare_bool(
+            self, "report_progress", False,
+            "publish the messages recorded per topic for flow control (nodes/flow.py)",
+        )  # fmt: skip
         if not output:
             raise ParameterError("output", "is required (the bag directory to write)")
         for name, value in (
@@ -318,10 +322,18 @@ class BagRecorder(SignalStop, Node):
         recording = self.recording
         assert recording is not None
         next_discovery = next_progress = time.monotonic()
+        reporter = None
+        if self.report_progress:
+            from strapdown_ros.nodes.flow import ProgressReporter
+
+            stats = recording.stats
+            reporter = ProgressReporter(self, lambda: ({t: s.count for t, s in stats.items()}, {}))
         while self._stop_reason is None:
             executor.spin_once(timeout_sec=0.05)
             now = time.monotonic()
             recording.tick()
+            if reporter is not None:
+                reporter.maybe_report(now)
             if now >= next_discovery:
                 self._discover()
                 next_discovery = now + self.discovery_period_s

@@ -38,12 +38,14 @@ from strapdown_ros.nodes._common import (
     declare_number,
     declare_scenario,
     declare_string,
+    declare_string_array,
     declare_subscriber_counts,
     message_class,
     qos_from_parameters,
     run_node,
     wait_for_subscriptions,
 )
+from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
 from strapdown_ros.stages.reference import build_trajectory, output_cycles, reference_batch_chunks
 
 NODE_NAME = "trajectory_node"
@@ -150,6 +152,12 @@ class TrajectoryNode(Node):
         )
         self.wait_timeout_s = declare_number(self, "wait_timeout_s", 10.0, "seconds to wait")
         self.exit_when_done = declare_bool(self, "exit_when_done", True, "exit after the last")
+        self.flow_nodes = declare_string_array(
+            self, "flow_nodes", "flow control: nodes whose progress reports pace the publishing"
+        )
+        self.flow_window = declare_int(
+            self, "flow_window", DEFAULT_WINDOW, "flow control: messages a consumer may lag", 1
+        )
 
         # The /clock batch exists exactly in 'sim' mode, whatever recording.clock says.
         self.scenario = scenario.with_recording(topics=topics, clock=self.time_source == "sim")
@@ -175,11 +183,20 @@ class TrajectoryNode(Node):
                 raise ParameterError(_parameter_of(topic, topics), str(exc)) from exc
             self.counts[topic] = 0
         self._wait_topics = all_topics if self.wait_for_all_topics else [self.imu_topic]
+        self.gate: FlowGate | None = None
+        if self.flow_nodes:
+            self.gate = FlowGate(self, self._msgtypes, self.flow_nodes, self.flow_window)
 
         self.get_logger().info(
             f"scenario {scenario.path} ({scenario.name}): {self.cycles} cycles at "
             f"{scenario.rate_hz:g} Hz, {self.cycles / scenario.rate_hz:g} s; time_source "
-            f"{self.time_source}, rate_factor {self.rate_factor:g}; topics "
+            f"{self.time_source}, rate_factor {self.rate_factor:g}"
+            + (
+                f", flow control on {', '.join(self.flow_nodes)} (window {self.flow_window})"
+                if self.gate is not None
+                else ""
+            )
+            + "; topics "
             + ", ".join(p.topic_name for p in self._publishers_by_topic.values())
         )
 
@@ -206,8 +223,11 @@ class TrajectoryNode(Node):
             if not self._wait_for_subscribers(spin):
                 return EXIT_FAILURE
             pacer: Pacer | None = None
-            paced = self.rate_factor > 0
-            errors = self.errors
+            gate = self.gate
+            # With flow control the pace is an upper bound, not a schedule: no pacing errors.
+            paced = self.rate_factor > 0 and gate is None
+            errors, counts = self.errors, self.counts
+            ok = self.context.ok
             wall_start = time.monotonic()
             t_first = t_last = 0
             while (item := pieces.get(spin)) is not None:
@@ -217,17 +237,20 @@ class TrajectoryNode(Node):
                         raise RuntimeError(f"unexpected batch {b.topic} ({b.msgtype})")
                 pubs = [self._publishers_by_topic[b.topic] for b in batches]
                 for k, i, stamp in merge_order(batches):
+                    topic = batches[k].topic
                     if pacer is None:
                         pacer = Pacer(self.rate_factor, stamp)
                         wall_start, t_first = pacer.start, stamp
                     pacer.wait(stamp, spin)
-                    if not self.context.ok():  # SIGINT / SIGTERM (rclpy's signal handlers)
+                    if gate is not None and counts[topic] >= gate.limits[topic]:
+                        # The pace resumes from here: a stall is not caught up in a burst.
+                        pacer.start += gate.wait(topic, counts[topic], spin, ok)
+                    if not ok():  # SIGINT / SIGTERM (rclpy's signal handlers)
                         raise ExternalShutdownException()
                     if paced:
                         errors.append(time.monotonic() - pacer.due(stamp))
-                    topic = batches[k].topic
                     pubs[k].publish(batches[k].payloads[i])
-                    self.counts[topic] += 1
+                    counts[topic] += 1
                     t_last = stamp
                     if time.monotonic() - last_spin[0] > SPIN_EVERY_S:
                         spin(0.0)
@@ -290,7 +313,13 @@ class TrajectoryNode(Node):
             f"published {total} messages: {span:.3f} s of data in {elapsed:.3f} s of wall "
             f"time ({span / max(elapsed, 1e-9):.2f}x real time)"
         ]
-        if pacer is not None and self.rate_factor > 0:
+        if self.gate is not None:
+            g = self.gate
+            lines.append(
+                f"flow control: waited {g.stalled_s:.3f} s in {g.stalls} stall(s) for the "
+                f"consumers (window {g.window} messages)"
+            )
+        if pacer is not None and self.rate_factor > 0 and self.gate is None:
             st = pacing_stats(self.errors)
             lines.append(
                 f"max lateness {pacer.max_lateness_s * 1e3:.3f} ms (pacing error publish - due "
