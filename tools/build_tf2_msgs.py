@@ -119,8 +119,18 @@ def build(prefix: Path, python: Path, jobs: int) -> Path:
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
     # 1. build-only wheels into their own prefix
     _run(
-        [str(python), "-m", "pip", "install", "-q", "--no-deps", "--prefix", str(tools),
-         "-r", str(PINS)],
+        [
+            str(python),
+            "-m",
+            "pip",
+            "install",
+            "-q",
+            "--no-deps",
+            "--prefix",
+            str(tools),
+            "-r",
+            str(PINS),
+        ],
         log,
         env,
     )
@@ -140,7 +150,11 @@ def build(prefix: Path, python: Path, jobs: int) -> Path:
         build_dir = Path(tmp) / "build"
         _run(
             [
-                "cmake", "-S", str(src), "-B", str(build_dir),
+                "cmake",
+                "-S",
+                str(src),
+                "-B",
+                str(build_dir),
                 f"-DCMAKE_PREFIX_PATH={tools};{prefix}",
                 f"-DCMAKE_INSTALL_PREFIX={prefix}",
                 f"-DPython3_EXECUTABLE={python}",

@@ -200,6 +200,10 @@ class FramesStage:
         Output cycles of the run (for the offsets).
     datum : Datum or None
         Default :func:`scenario_datum`.
+    variation_tf : bool
+        Pair reference and variation truth for ``base_link → variation_imu`` (``generate``,
+        the variation node); False where no variation Odometry is fed (the other nodes), so
+        that reference poses are not kept.
     """
 
     def __init__(
@@ -209,8 +213,10 @@ class FramesStage:
         offsets: OffsetArrays | None = None,
         cycles: int | None = None,
         datum: Datum | None = None,
+        variation_tf: bool = True,
     ) -> None:
         spec = tf_spec(scenario)
+        self.variation_tf = variation_tf
         self.scenario = scenario
         self.datum = datum if datum is not None else scenario_datum(scenario)
         nav_period = None
@@ -370,7 +376,9 @@ class FramesStage:
         (:meth:`feed_batches` does it); the variation node feeds its reference input.
         """
         s = self.settings
-        if not s.tf or self.scenario.variation is None or self.variation_is_static():
+        if not s.tf or not self.variation_tf or self.scenario.variation is None:
+            return
+        if self.variation_is_static():
             return
         if fields.frame_id != self.frames["earth"] or not len(fields):
             return
