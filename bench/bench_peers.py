@@ -41,7 +41,10 @@ Usage: python bench/bench_peers.py [--duration-s 3600] [--n 10] [--p 10] [--repe
 ``--every K`` feeds every K-th pyins truth sample to our fit (1 = all of them, the default);
 ``--coarse K`` adds a row fed every K-th sample (0: no such row).
 Last line: ``speedup_vs_pyins: X x`` = (pyins generation + navigation) / (ours), best-of times,
-JIT compilation excluded, our reference fitted to the ``--every`` feed.
+JIT compilation excluded, our reference fitted to the ``--every`` feed. The line before,
+``speedup_vs_pyins_fresh_process``: the same ratio for each tool's first generation +
+navigation in a fresh process (JIT included; our numba cache warm, pyins has none), two child
+processes with the tools in either order, the lower ratio.
 """
 
 from __future__ import annotations
@@ -116,6 +119,87 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
+def fresh_process_child(order: str, truth_file: str, every: int, n: int, p: int) -> None:
+    """One fresh process: each tool's *first* generation + navigation, the JIT included.
+
+    Our numba cache (``NUMBA_CACHE_DIR``, inherited from the parent) is warm; pyins' kernels
+    are not cached by pyins (``numba.njit()`` without ``cache``), so it compiles in every new
+    process. Imports are not timed. Prints one JSON line ``{"pyins": s, "ours": s}``.
+    """
+    import json
+    import pickle
+
+    from pyins import sim, strapdown
+
+    from strapdown_ros.config import parse_scenario
+    from strapdown_ros.core.navigation import NavState, navigate_multirate, truth_navigation
+    from strapdown_ros.core.trajectory.samples import SamplesTrajectory, samples_from_arrays
+    from strapdown_ros.stages.reference import generate_reference
+
+    with open(truth_file, "rb") as fh:
+        duration_s, ref = pickle.load(fh)
+    d2r = np.pi / 180.0
+    scenario = parse_scenario(
+        {"name": "pyins_sine_velocity", "rate_hz": round(1.0 / PERIOD), "trajectory": FIT_CONFIG}
+    )
+
+    def pyins_run() -> None:
+        truth, imu = sim.generate_sine_velocity_motion(
+            PERIOD, duration_s, LLA0, VELOCITY_MEAN,
+            velocity_change_amplitude=1, sensor_type="increment",
+        )  # fmt: skip
+        increments = strapdown.compute_increments_from_imu(imu, "increment")
+        strapdown.Integrator(truth.iloc[0]).integrate(increments)
+
+    def ours_run() -> None:
+        truth = ref.iloc[::every] if every > 1 else ref
+        t = truth.index.to_numpy(dtype=np.float64)
+        a = truth[TRUTH_COLS].to_numpy()
+        samples = samples_from_arrays(
+            t - t[0],
+            lat=a[:, 0] * d2r, lon=a[:, 1] * d2r, alt=a[:, 2], v_ned=a[:, 3:6],
+            roll=a[:, 6] * d2r, pitch=a[:, 7] * d2r, heading=a[:, 8] * d2r,
+        )  # fmt: skip
+        stream = generate_reference(
+            scenario, SamplesTrajectory(samples, scenario.trajectory.fit_options())
+        )
+        _, lat, lon, alt, v, q = truth_navigation(stream)
+        st0 = NavState(0.0, float(lat[0]), float(lon[0]), float(alt[0]), v[0].copy(), q[0])
+        navigate_multirate(
+            st0, stream.dalpha, stream.dv, PERIOD, n, p, gravity_model="j2", mode="exact"
+        )
+
+    runs = {"pyins": pyins_run, "ours": ours_run}
+    out = {}
+    for name in order.split(","):
+        t0 = time.perf_counter()
+        runs[name]()
+        out[name] = time.perf_counter() - t0
+    print(json.dumps(out))
+
+
+def fresh_process_ratio(
+    duration_s: float, ref, every: int, n: int, p: int, cache_dir: str
+) -> list[dict[str, float]]:
+    """Run :func:`fresh_process_child` twice (pyins first, then ours first), warm cache."""
+    import json
+    import pickle
+    import subprocess
+
+    times = []
+    with tempfile.TemporaryDirectory(prefix="bench_peers_truth_") as tmp:
+        truth_file = str(Path(tmp) / "truth.pkl")
+        with open(truth_file, "wb") as fh:
+            pickle.dump((duration_s, ref), fh)
+        for order in ("pyins,ours", "ours,pyins"):
+            cmd = [sys.executable, __file__, "--fresh-child", order, truth_file,
+                   "--every", str(every), "--n", str(n), "--p", str(p)]  # fmt: skip
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+            res = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
+            times.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    return times
+
+
 def main(argv: list[str] | None = None) -> float:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration-s", type=float, default=3600.0)
@@ -124,7 +208,13 @@ def main(argv: list[str] | None = None) -> float:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs (best of)")
     parser.add_argument("--every", type=int, default=1, help="feed every K-th truth sample")
     parser.add_argument("--coarse", type=int, default=10, help="extra row: every K-th sample")
+    parser.add_argument(
+        "--fresh-child", nargs=2, metavar=("ORDER", "TRUTH"), help=argparse.SUPPRESS
+    )
     args = parser.parse_args(argv)
+    if args.fresh_child:
+        fresh_process_child(*args.fresh_child, args.every, args.n, args.p)
+        return 0.0
     if args.every < 1 or args.coarse < 0 or args.n < 1 or args.p < 1:
         parser.error("--every, --n and --p must be >= 1, --coarse >= 0")
 
@@ -433,6 +523,17 @@ def main(argv: list[str] | None = None) -> float:
         f"{abs(own_p.down) / max(abs(own_o.down), 1e-300):.1e} x"
     )
     speedup = total_p / total_o
+    # Fresh processes, JIT included, our numba cache warm (filled by this process above).
+    fresh = fresh_process_ratio(args.duration_s, ref, args.every, n_nav, p_nav, cache.name)
+    ratios = [f["pyins"] / f["ours"] for f in fresh]
+    print(
+        "fresh process, first generation + navigation incl. JIT, our numba cache warm: "
+        + "; ".join(
+            f"order {' then '.join(f)}: pyins {f['pyins']:.3f} s, ours {f['ours']:.3f} s"
+            for f in fresh
+        )
+    )
+    print(f"speedup_vs_pyins_fresh_process: {min(ratios):.2f} x (the lower of the two orders)")
     print(f"speedup_vs_pyins: {speedup:.2f} x")
     sys.stdout.flush()
     cache.cleanup()
