@@ -65,7 +65,8 @@ def _start_node(name: str, params: list[str], env, log: Path) -> subprocess.Pope
               *params]:  # fmt: skip
         args += ["-p", p]
     with open(log, "w") as f:
-        return subprocess.Popen(args, env=env, stdout=f, stderr=subprocess.STDOUT, cwd=REPO)
+        # cwd: not the repository, whose package would shadow STRAPDOWN_FAULTS_NODE_PATH's
+        return subprocess.Popen(args, env=env, stdout=f, stderr=subprocess.STDOUT, cwd=log.parent)
 
 
 def _wait_for(log: Path, text: str, proc: subprocess.Popen, deadline: float) -> None:
