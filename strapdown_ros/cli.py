@@ -22,8 +22,6 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from strapdown_ros.config import ScenarioError, load_scenario
-
 
 def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario YAML file (SPEC §5, docs/scenarios.md)")
@@ -190,6 +188,7 @@ class _ProgressBar:
 
 
 def _generate(args: argparse.Namespace) -> int:
+    from strapdown_ros.config import load_scenario
     from strapdown_ros.generate import generate_dataset
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
@@ -210,6 +209,7 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
+    from strapdown_ros.config import load_scenario
     from strapdown_ros.stages.reference import build_trajectory, natural_duration, output_cycles
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
@@ -438,6 +438,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     """Run the subcommand of ``args``; user errors become a message and an exit status."""
+    # Imported here, not at module level: a Ctrl-C while the heavy modules load is then
+    # handled by main() like any other (no traceback).
+    from strapdown_ros.config import ScenarioError
+
     try:
         if args.command == "generate":
             return _generate(args)
