@@ -163,7 +163,7 @@ def fresh_process_child(order: str, truth_file: str, every: int, n: int, p: int)
         stream = generate_reference(
             scenario, SamplesTrajectory(samples, scenario.trajectory.fit_options())
         )
-        _, lat, lon, alt, v, q = truth_navigation(stream)
+        _, lat, lon, alt, v, q = truth_navigation(stream, np.array([0]))  # start: the truth
         st0 = NavState(0.0, float(lat[0]), float(lon[0]), float(alt[0]), v[0].copy(), q[0])
         navigate_multirate(
             st0, stream.dalpha, stream.dv, PERIOD, n, p, gravity_model="j2", mode="exact"
