@@ -26,6 +26,7 @@ from __future__ import annotations
 import ctypes
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -53,6 +54,9 @@ STARTUP_TIMEOUT_S = 60.0
 RECORDER_GRACE_S = 30.0
 #: Seconds between SIGINT and SIGKILL when stopping children.
 STOP_GRACE_S = 10.0
+#: Environment variable: a directory where ``run`` writes a cProfile of each node process
+#: (``<node>.prof``; bench/bench_live.py --profile). Profiling slows the nodes down.
+PROFILE_ENV = "STRAPDOWN_PROFILE_DIR"
 
 
 class PipelineError(RuntimeError):
@@ -81,6 +85,8 @@ class PipelineResult:
     stalled_s: float = 0.0
     #: The trajectory node's pacing line (paced runs without flow control).
     pacing: str = ""
+    #: CPU seconds (user + system) of each child process, start-up included.
+    cpu_s: dict[str, float] = field(default_factory=dict)
 
     @property
     def lost(self) -> dict[str, int]:
@@ -127,6 +133,10 @@ class PipelineResult:
         text += ")"
         if self.pacing:
             text += f"\npacing:    {self.pacing}"
+        if self.cpu_s:
+            text += "\ncpu:       " + ", ".join(
+                f"{n} {s:.1f} s" for n, s in self.cpu_s.items()
+            ) + f" (total {sum(self.cpu_s.values()):.1f} s, start-up included)"
         return text
 
 
@@ -190,6 +200,21 @@ class _Child:
             args, env=env, stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
             preexec_fn=preexec, process_group=0,
         )  # fmt: skip
+
+    #: CPU seconds (user + system) of the process, known once :meth:`poll` reaped it.
+    cpu_s: float | None = None
+
+    def poll(self) -> int | None:
+        """``proc.poll()`` that also takes the process' CPU time when it has exited."""
+        if self.proc.returncode is None:
+            try:
+                pid, status, usage = os.wait4(self.proc.pid, os.WNOHANG)
+            except ChildProcessError:  # reaped elsewhere
+                return self.proc.poll()
+            if pid:
+                self.proc.returncode = os.waitstatus_to_exitcode(status)
+                self.cpu_s = usage.ru_utime + usage.ru_stime
+        return self.proc.returncode
 
     @property
     def log(self) -> str:
@@ -347,7 +372,12 @@ def run_pipeline(
     children: list[_Child] = []
 
     def start(name: str, *params: str) -> _Child:
-        child = _Child(name, [_executable(name), *ros_args(*params)], env, log_dir)
+        command = [_executable(name)]
+        if os.environ.get(PROFILE_ENV):
+            prof = Path(os.environ[PROFILE_ENV]) / f"{name}.prof"
+            script = command[0] if os.sep in command[0] else shutil.which(name) or name
+            command = [sys.executable, "-m", "cProfile", "-o", str(prof), script]
+        child = _Child(name, [*command, *ros_args(*params)], env, log_dir)
         children.append(child)
         return child
 
@@ -419,13 +449,13 @@ def run_pipeline(
         interrupted = False
         while True:
             for c in children:
-                code = c.proc.poll()
+                code = c.poll()
                 if code is not None and code != 0:
                     raise PipelineError(f"{c.name} exited with status {code}", c.log)
-            if recorder.proc.poll() == 0:
+            if recorder.poll() == 0:
                 break
-            producers_done = all(c.proc.poll() == 0 for c in children if c is not recorder)
-            if producers_done and traj.proc.poll() == 0:
+            producers_done = all(c.poll() == 0 for c in children if c is not recorder)
+            if producers_done and traj.poll() == 0:
                 # The recorder stops by itself once every publisher is gone (stop_when_done);
                 # if it has not within RECORDER_GRACE_S, SIGINT makes it finalize the bag.
                 if done_at is None:
@@ -440,10 +470,16 @@ def run_pipeline(
                 )
             time.sleep(0.1)
         say("recorder finished")
+        # The nodes are done (their publishers are gone); let them exit by themselves rather
+        # than be killed in their teardown, so that their CPU time is known.
+        end = time.monotonic() + STOP_GRACE_S
+        while any(c.poll() is None for c in children) and time.monotonic() < end:
+            time.sleep(0.05)
     except BaseException:
         _stop_all(children)
         raise
     finally:
+        cpu = {c.name: c.cpu_s for c in children if c.cpu_s is not None}
         _reap(children)
     contents = read_bag(out)
     counts = {t: len(d) for t, d in contents.topics.items()}
@@ -456,6 +492,7 @@ def run_pipeline(
         domain_id=domain,
         rate_factor=rate_factor,
         flow_control=flow_control,
+        cpu_s=cpu,
     )
     _read_trajectory_summary(log_dir / "trajectory_node.log", result)
     return result
