@@ -299,7 +299,7 @@ class BagRecorder(SignalStop, Node):
                 custom_data=self.custom_data,
                 fsync=self.fsync,
             ).open()
-        except BagWriteError as exc:
+        except (BagWriteError, OSError) as exc:  # OSError: read-only or full file system
             self.get_logger().error(f"cannot create the bag: {exc}")
             return EXIT_FAILURE
         self.recording = Recording(
@@ -311,8 +311,11 @@ class BagRecorder(SignalStop, Node):
         start = time.monotonic()
         try:
             status = self._record(executor, start)
-        except BagWriteError as exc:
-            self.get_logger().error(f"recording failed: {exc}")
+        except (BagWriteError, OSError) as exc:  # OSError: a full disk, a vanished mount
+            self.get_logger().error(
+                f"recording failed: {exc}; the messages flushed so far are kept in "
+                f"{self.output} (`strapdown-sim bag repair {self.output}` makes it readable)"
+            )
             status = EXIT_FAILURE
         finally:
             self._close(time.monotonic() - start)
@@ -369,7 +372,7 @@ class BagRecorder(SignalStop, Node):
             return
         try:
             path = rec.close()
-        except BagWriteError as exc:
+        except (BagWriteError, OSError) as exc:
             self.get_logger().error(
                 f"cannot finish the bag: {exc}; `strapdown-sim bag repair {self.output}` "
                 "recovers what was flushed"

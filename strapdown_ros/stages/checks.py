@@ -7,7 +7,7 @@ checks. What each stage does with each fault class: docs/reliability.md.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import fields
 from typing import Any
 
@@ -89,6 +89,26 @@ class InputEvents:
         self.counts: dict[str, int] = {}
         self._recent: dict[str, list[float]] = {}
         self._held: dict[str, int] = {}
+        self._dropped: dict[str, set[int]] = {}  # topic -> stamps dropped (already logged)
+
+    def dropped(self, topic: str, stamps: Iterable[int]) -> None:
+        """Remember stamps of ``topic`` whose messages were dropped (and logged) here, so the
+        gap they leave is not logged as a second event (:meth:`gap`)."""
+        held = self._dropped.setdefault(topic, set())
+        if len(held) > 100_000:
+            held.clear()
+        held.update(int(s) for s in stamps)
+
+    def gap(self, topic: str, missing: Iterable[int], message: str, info: Log) -> None:
+        """A gap of the ``missing`` stamps: an event, unless every one of them was dropped here
+        (then ``message`` goes to ``info`` only: the event was counted when they were)."""
+        held = self._dropped.get(topic, set())
+        missing = [int(s) for s in missing]
+        if missing and all(s in held for s in missing):
+            held.difference_update(missing)
+            info(message + " (the message(s) dropped above)")
+            return
+        self("gap", message)
 
     def __call__(self, what: str, message: str, *, error: bool = False, n: int = 1) -> None:
         """Count ``n`` events of class ``what`` and log ``message`` (unless flooded)."""

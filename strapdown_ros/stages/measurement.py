@@ -205,6 +205,7 @@ class MeasuredImuStream:
         if bad is None:
             return
         cycles[bad] = -2
+        self.events.dropped(self.input_topic, stamps[bad].tolist())
         for a, b in stretches(bad):
             span = format_stamp(int(stamps[a]))
             if b > a:
@@ -266,12 +267,14 @@ class MeasuredImuStream:
                         f"is advanced over cycles 1..{m - 1}"
                     )
                 else:
-                    self.events(
-                        "gap",
+                    self.events.gap(
+                        self.input_topic,
+                        (self.t0_ns + k * self.period_ns for k in range(last + 1, m)),
                         f"{self.input_topic}: gap: stamp {self.describe(m)} follows "
                         f"{self.describe(last)}; the model is advanced over the {missing} "
                         "missing cycle(s) (noise continues; the quantizer misses their "
-                        "increments)"
+                        "increments)",
+                        self.info,
                     )
                 self.model.skip(missing)
             j = i + 1

@@ -604,7 +604,6 @@ class NavigationStage:
         self.events = InputEvents(warn, error)
         self.period_ns: int | None = None
         self.first_imu: list[tuple[int, Any]] = []  # (stamp, fields) before T is known
-        self._dropped_imu: set[int] = set()  # IMU stamps dropped as non-finite (logged once)
         self.imu_buffer: list[tuple[int, F64, F64]] = []  # waiting for a run
         self.truth = _TruthStore(TRUTH_KEEP)
         self.run: NavigatorRun | None = None
@@ -787,8 +786,7 @@ class NavigationStage:
                 parts.append(dec)
                 continue
             for a, b in stretches(bad):
-                self._nonfinite_event(topic, int(dec.stamps[a]), int(dec.stamps[b]), b - a + 1,
-                                      flag)  # fmt: skip
+                self._nonfinite_event(topic, dec.stamps[a : b + 1].tolist(), flag)
             keep[np.flatnonzero(is_imu == flag)[bad]] = False
             fields = without_rows(dec.fields, bad)
             parts.append(None if fields is None else self._decoded(fields))
@@ -796,9 +794,10 @@ class NavigationStage:
             return is_imu, imu, truth
         return is_imu[keep], parts[0], parts[1]
 
-    def _nonfinite_event(self, topic: str, first: int, last: int, n: int, imu: bool) -> None:
-        if imu and self.period_ns:
-            self._dropped_imu.update(range(first, last + 1, self.period_ns))
+    def _nonfinite_event(self, topic: str, stamps: Sequence[int], imu: bool) -> None:
+        first, last, n = int(stamps[0]), int(stamps[-1]), len(stamps)
+        if imu:
+            self.events.dropped(topic, stamps)
         span = format_stamp(first) + (f"..{format_stamp(last)} ({n} messages)" if n > 1 else "")
         action = ("treated as lost: the run ends at its last complete cycle, a new one starts "
                   "from the truth" if imu else
@@ -852,8 +851,7 @@ class NavigationStage:
                             f"{exc}", error=True)  # fmt: skip
                 return []
             if nonfinite_rows(fields) is not None:
-                stamp = int(fields.stamps_ns[0])
-                self._nonfinite_event(self.spec.imu_topic, stamp, stamp, 1, True)
+                self._nonfinite_event(self.spec.imu_topic, [int(fields.stamps_ns[0])], True)
                 return []
             return self._on_imu_fields(fields)
         row = k - int(imu_before[k])
@@ -867,8 +865,7 @@ class NavigationStage:
                             f"Odometry: {exc}", error=True)  # fmt: skip
                 return []
             if nonfinite_rows(fields) is not None:
-                stamp = int(fields.stamps_ns[0])
-                self._nonfinite_event(self.spec.truth_topic, stamp, stamp, 1, False)
+                self._nonfinite_event(self.spec.truth_topic, [int(fields.stamps_ns[0])], False)
                 return []
             one = self._decoded(fields)
             if one.states is None:
@@ -972,20 +969,16 @@ class NavigationStage:
                         "a new run starts from the truth",
                     )
                 else:
-                    gap = f"{self.spec.imu_topic}: {exc} "
-                    if expected in self._dropped_imu:  # already logged as non-finite
-                        self._dropped_imu.discard(expected)
-                        self.info(gap + "(the message dropped above); a new run starts from "
-                                  "the truth")  # fmt: skip
-                    else:
-                        self.events(
-                            "gap",
-                            gap + f"({(stamp - expected) // self.period_ns} message(s) missing "
-                            f"after {format_stamp(expected - self.period_ns)}); the run that "
-                            f"started at {format_stamp(self.run.start_ns)} ends at its last "
-                            "complete cycle and a new run starts from the truth before the next "
-                            "message",
-                        )
+                    self.events.gap(
+                        self.spec.imu_topic,
+                        range(expected, stamp, self.period_ns),
+                        f"{self.spec.imu_topic}: {exc} "
+                        f"({(stamp - expected) // self.period_ns} message(s) missing after "
+                        f"{format_stamp(expected - self.period_ns)}); the run that started at "
+                        f"{format_stamp(self.run.start_ns)} ends at its last complete cycle "
+                        "and a new run starts from the truth before the next message",
+                        self.info,
+                    )
                 self._flush_pending = self._outputs_of(self.run)
                 self.run = None
         if self.imu_buffer and stamp <= self.imu_buffer[-1][0]:

@@ -444,6 +444,7 @@ class VariationStage:
         if bad is None:
             return inp
         stamps = np.asarray(inp.fields.stamps_ns, dtype=np.int64)
+        self.events.dropped(self.topics[inp.kind], stamps[bad].tolist())
         for a, b in stretches(bad):
             span = format_stamp(int(stamps[a]))
             if b > a:
@@ -587,6 +588,7 @@ class VariationStage:
             self.timing.decode_wall += time.perf_counter() - t
             self.timing.decoded += 1
             if nonfinite_rows(msg) is not None:
+                self.events.dropped(topic, [int(msg.stamps_ns[0])])
                 self.events(
                     "non-finite",
                     f"{topic}: stamp {format_stamp(int(msg.stamps_ns[0]))}: NaN or infinity in "
@@ -647,11 +649,13 @@ class VariationStage:
             )
             return
         else:
-            self.events(
-                "gap",
+            self.events.gap(
+                topic,
+                (self.t0_ns + k * self.period_ns for k in range(last + 1, m)),
                 f"{topic}: gap: stamp {format_stamp(stamp)} (cycle {m}) follows "
                 f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); "
-                f"{m - last - 1} cycle(s) missing"
+                f"{m - last - 1} cycle(s) missing",
+                self.info,
             )
             self._remember(kind, m, msg, payload)
             self.restart(self._first_run_cycle(kind, m), f"{topic}: gap")
