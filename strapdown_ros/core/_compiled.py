@@ -243,3 +243,35 @@ def matmul33(a: np.ndarray, b: np.ndarray, transpose_a: bool = False) -> np.ndar
         out,
     )
     return out
+
+
+@_jit
+def normal_band_kernel(indptr, indices, data, w, vals, p, ab, rhs):
+    """One term of Giribet eq. (14): ``ab += band(Aᵀ W A)``, ``rhs += Aᵀ W vals``.
+
+    ``A`` in CSR (``indptr, indices, data``; rows = samples), ``ab`` the upper band
+    (``ab[p - (j - i), j] = M[i, j]``, scipy's ``cholesky_banded`` layout). Each entry is
+    summed over the samples in ascending order, as scipy.sparse's ``aw.T @ a`` and
+    ``aw.T @ vals`` do (``aw = A * w``), so the bits are the same.
+    """
+    n = ab.shape[1]
+    m = vals.shape[1]
+    band = np.zeros((p + 1, n))
+    acc = np.zeros((n, m))
+    for k in range(indptr.size - 1):
+        wk = w[k]
+        for e in range(indptr[k], indptr[k + 1]):
+            i = indices[e]
+            awi = data[e] * wk
+            for f in range(indptr[k], indptr[k + 1]):
+                j = indices[f]
+                if j >= i:
+                    band[p - (j - i), j] += awi * data[f]
+            for c in range(m):
+                acc[i, c] += awi * vals[k, c]
+    for r in range(p + 1):
+        for j in range(n):
+            ab[r, j] = ab[r, j] + band[r, j]
+    for i in range(n):
+        for c in range(m):
+            rhs[i, c] = rhs[i, c] + acc[i, c]

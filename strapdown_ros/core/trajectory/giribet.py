@@ -53,6 +53,7 @@ from scipy.integrate import solve_ivp
 from scipy.interpolate import BSpline, make_interp_spline
 from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
+from strapdown_ros.core import _compiled as _k
 from strapdown_ros.core.rotations import quat_conjugate, quat_multiply
 from strapdown_ros.core.trajectory.base import TrajectoryError
 
@@ -290,6 +291,7 @@ def fit_spline(
     m = None
     normal = sparse.csr_array((n, n))
     rhs: Array | None = None
+    ab: Array | None = None  # upper band of eq. (14)'s M (compiled path)
     for d in data:
         if d.order < 0 or d.order > p:
             raise ValueError(f"derivative order {d.order} is not in [0, degree={p}]")
@@ -311,14 +313,23 @@ def fit_spline(
         if d.order == 0 and check_intervals:
             _schoenberg_whitney(bp, p, tau)
         a = _design(xi, p, tau, d.order)
+        if _k.HAVE_NUMBA:  # the same sums in one compiled pass, straight into the band
+            if ab is None:
+                ab = np.zeros((p + 1, n))
+            _k.normal_band_kernel(
+                a.indptr, a.indices, a.data, np.ascontiguousarray(w), np.ascontiguousarray(vals),
+                p, ab, rhs,
+            )  # fmt: skip
+            continue
         aw = sparse.csr_array(a.multiply(w[:, None]))
         normal = normal + aw.T @ a
         rhs = rhs + aw.T @ vals
     assert rhs is not None
-    ab = np.zeros((p + 1, n))
-    normal = sparse.csr_array(normal)
-    for off in range(p + 1):
-        ab[p - off, off:] = normal.diagonal(off)
+    if ab is None:
+        ab = np.zeros((p + 1, n))
+        normal = sparse.csr_array(normal)
+        for off in range(p + 1):
+            ab[p - off, off:] = normal.diagonal(off)
     try:
         chol = cholesky_banded(ab, lower=False)
     except LinAlgError as exc:

@@ -55,7 +55,7 @@ from strapdown_ros.core.earth import (
     geodetic_to_ecef,
     ned_velocity_from_ecef,
 )
-from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_quat, quat_from_dcm
+from strapdown_ros.core.rotations import dcm_from_quat, quat_from_dcm, rot_x, rot_y, rot_z
 from strapdown_ros.core.trajectory.base import LocalTruth, TrajectoryError, TruthE0
 from strapdown_ros.core.trajectory.giribet import (
     QuaternionSpline,
@@ -212,6 +212,14 @@ class Samples:
     omega_frame: str = "inertial"
 
 
+def _dcm_from_euler(roll: Array, pitch: Array, heading: Array) -> Array:
+    """``rotations.dcm_from_euler``: ``C_B^N = Rz(heading) Ry(pitch) Rx(roll)``, rad in.
+
+    Same bits, the stacked products compiled (:func:`~strapdown_ros.core._compiled.matmul33`).
+    """
+    return matmul33(matmul33(rot_z(heading), rot_y(pitch)), rot_x(roll))
+
+
 def _arr(name: str, x: ArrayLike, n: int, width: int | tuple[int, ...] | None) -> Array:
     a = np.asarray(x, dtype=np.float64)
     shape = (n,) if width is None else (n,) + ((width,) if isinstance(width, int) else width)
@@ -341,14 +349,9 @@ def samples_from_arrays(
     elif q_b_n is not None:
         cbe = matmul33(c_n_e, dcm_from_quat(_arr("q_b_n", q_b_n, n, 4)))
     elif roll is not None:
-        cbe = matmul33(
-            c_n_e,
-            dcm_from_euler(
-                _arr("roll", roll, n, None),
-                _arr("pitch", pitch, n, None),
-                _arr("heading", heading, n, None),
-            ),
-        )
+        roll_a = _arr("roll", roll, n, None)
+        pitch_a = _arr("pitch", pitch, n, None)
+        cbe = matmul33(c_n_e, _dcm_from_euler(roll_a, pitch_a, _arr("heading", heading, n, None)))
     if cbe is not None and np.any(np.linalg.norm(cbe.reshape(n, 9), axis=1) < 1e-6):
         raise ValueError("attitude: zero quaternion or matrix in the attitude samples")
 
@@ -471,7 +474,7 @@ def _derived_c_b_n(v_ned: Array) -> Array:
 
     heading = held(np.arctan2(v_ned[:, 1], v_ned[:, 0]), vh >= DERIVED_ATTITUDE_MIN_SPEED)
     pitch = held(np.arctan2(-v_ned[:, 2], vh), speed >= DERIVED_ATTITUDE_MIN_SPEED)
-    return dcm_from_euler(np.zeros_like(pitch), pitch, heading)
+    return _dcm_from_euler(np.zeros_like(pitch), pitch, heading)
 
 
 def _weights(name: str, w: float | ArrayLike, n: int) -> Array:
