@@ -18,6 +18,9 @@ from pathlib import Path
 
 import pytest
 
+#: Every case starts strapdown-sim (a few seconds of CPU each): out of make test-fast.
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 CLI = "import sys; from strapdown_ros.cli import main; sys.exit(main())"
