@@ -614,6 +614,7 @@ class NavigationStage:
         #: End-of-output errors (m): ``horizontal_m``, ``vertical_m``, ``max_horizontal_m``.
         self.final_errors: dict[str, float] = {}
         self._flush_pending: list[NavigatorOutputs] = []
+        self._diverged = False  # the current run produced a non-finite solution
         if period_ns is not None:
             self._set_period(int(period_ns), "given")
 
@@ -1061,7 +1062,13 @@ class NavigationStage:
         self._try_start()
         if self.run is None:
             return flushed
-        return [*flushed, *self._outputs_of(self.run)]
+        groups = self._outputs_of(self.run)
+        if self._diverged:  # its state is not finite: a new run from the truth
+            self._diverged = False
+            self.info(f"the run that started at {format_stamp(self.run.start_ns)} diverged; a "
+                      "new run starts from the truth before the next IMU message")  # fmt: skip
+            self.run = None
+        return [*flushed, *groups]
 
     def _outputs_of(self, run: NavigatorRun) -> list[NavigatorOutputs]:
         groups = []
@@ -1083,6 +1090,9 @@ class NavigationStage:
         run.truth_lost.clear()
         if out is None:
             return None
+        out = self._finite_outputs(out)
+        if out is None:
+            return self._output_group(run)
         self.published_outputs += len(out)
         self.last_output_ns = int(out.odom.stamps_ns[-1])
         if out.error_position is not None:
@@ -1096,6 +1106,31 @@ class NavigationStage:
                 ),
             }
         return out
+
+    def _finite_outputs(self, out: NavigatorOutputs) -> NavigatorOutputs | None:
+        """``out`` without the outputs holding a non-finite number (a diverged solution, e.g.
+        an unstable vertical channel): never published, each stretch logged."""
+        bad = None
+        for _, fields in out.items():
+            rows = nonfinite_rows(fields)
+            if rows is not None:
+                bad = rows if bad is None else bad | rows
+        if bad is None:
+            return None if len(out) == 0 else out
+        stamps = np.asarray(out.odom.stamps_ns, dtype=np.int64)
+        for a, b in stretches(bad):
+            self.events(
+                "non-finite output",
+                f"{self.output_topics['odom']}: the solution at {format_stamp(int(stamps[a]))}"
+                + (f"..{format_stamp(int(stamps[b]))}" if b > a else "")
+                + " is not finite (the navigator diverged); not published",
+                error=True,
+            )
+        self._diverged = True
+        if bad.all():
+            return None
+        kept = {k: without_rows(f, bad) for k, f in out.items()}
+        return NavigatorOutputs(**kept)
 
     # -- serialization -----------------------------------------------------------------------
 

@@ -213,3 +213,24 @@ def test_measurement_nonfinite_and_restart(scenario, contents) -> None:
     assert nonfinite_rows(cdr.deserialize(cdr.IMU, out)) is None
     assert stream.events.counts == {"non-finite": 1, "restart": 1}, log.lines
     assert stream.runs == 2
+
+
+def _huge(payload: bytes) -> bytes:
+    fields = cdr.deserialize(cdr.IMU, [payload])
+    values = {f: getattr(fields, f) for f in fields.__dataclass_fields__}
+    values["linear_acceleration"] = np.full((1, 3), 1.7e308)
+    return bytes(cdr.serialize(type(fields)(**values))[0])
+
+
+def test_navigator_never_publishes_a_diverged_solution(scenario, contents) -> None:
+    """Finite but absurd input makes the solution overflow: the non-finite outputs are not
+    published (logged as one event per stretch)."""
+    log = _Log()
+    stage = _navigator(scenario, log)
+    items = _live(contents, "/variation/imu", "/variation/odom", ("imu", "truth"))
+    k = next(i for i, (kind, _) in enumerate(items) if kind == "imu" and i > 400)
+    items[k] = ("imu", _huge(items[k][1]))
+    out = _feed(stage, items)
+    _finite(out, NAV)
+    assert stage.events.counts.get("non-finite output", 0) == 1, log.lines
+    assert stage.runs == 2 and stage.finished  # a new run from the truth reaches the end
