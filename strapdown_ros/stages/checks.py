@@ -6,6 +6,7 @@ checks. What each stage does with each fault class: docs/reliability.md.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import fields
@@ -23,23 +24,41 @@ def format_stamp(stamp_ns: int) -> str:
     return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
 
 
+#: Floating-point field names of each field-container type (found once per type).
+_FLOAT_FIELDS: dict[type, tuple[str, ...]] = {}
+
+
+def _float_fields(container: Any) -> tuple[str, ...]:
+    names = _FLOAT_FIELDS.get(type(container))
+    if names is None:
+        names = tuple(
+            f.name for f in fields(container)
+            if not isinstance(getattr(container, f.name), str)
+            and np.asarray(getattr(container, f.name)).dtype.kind == "f"
+        )  # fmt: skip
+        _FLOAT_FIELDS[type(container)] = names
+    return names
+
+
 def nonfinite_rows(container: Any) -> np.ndarray | None:
     """Boolean mask of the messages of a field container with a NaN or an infinity in any
-    floating-point field (None: every message is finite, the common case)."""
-    bad = None
+    floating-point field (None: every message is finite, the common case).
+
+    Fast path (a few microseconds per batch): the sum of each array is finite; only if one is
+    not (a non-finite value, or an overflow of huge finite ones) are the rows checked exactly.
+    """
+    suspect = []
+    for name in _float_fields(container):
+        a = getattr(container, name)
+        if a.size and not math.isfinite(a.sum()):
+            suspect.append(a)
+    if not suspect:
+        return None
     n = len(container)
-    for f in fields(container):
-        value = getattr(container, f.name)
-        if isinstance(value, str):
-            continue
-        a = np.asarray(value)
-        if a.dtype.kind != "f" or a.size == 0:
-            continue
-        if np.isfinite(a).all():
-            continue
-        rows = ~np.isfinite(a.reshape(n, -1)).all(axis=1)
-        bad = rows if bad is None else bad | rows
-    return bad
+    bad = np.zeros(n, dtype=bool)
+    for a in suspect:
+        bad |= ~np.isfinite(np.asarray(a).reshape(n, -1)).all(axis=1)
+    return bad if bad.any() else None
 
 
 def without_rows(container: Any, drop: np.ndarray) -> Any:
