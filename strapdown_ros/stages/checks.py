@@ -48,10 +48,11 @@ def nonfinite_rows(container: Any) -> np.ndarray | None:
     not (a non-finite value, or an overflow of huge finite ones) are the rows checked exactly.
     """
     suspect = []
-    for name in _float_fields(container):
-        a = getattr(container, name)
-        if a.size and not math.isfinite(a.sum()):
-            suspect.append(a)
+    with np.errstate(over="ignore", invalid="ignore"):  # huge finite values may overflow
+        for name in _float_fields(container):
+            a = getattr(container, name)
+            if a.size and not math.isfinite(a.sum()):
+                suspect.append(a)
     if not suspect:
         return None
     n = len(container)
