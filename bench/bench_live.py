@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> float:
                     ok_all = ok_all and r["lost"] == 0 and r["same"]
         print(f"{rate:>8g} worst of {args.repeats}: {worst.get(rate, -1)} lost"
               f"{'' if ok_all else '  (not zero loss in every run)'}")  # fmt: skip
-        if ok_all and rate > best and all(
+        if ok_all and rate in worst and rate > best and all(
             worst.get(r, 1) == 0 for r in args.rates if r < rate
         ):  # fmt: skip
             best = rate

@@ -171,6 +171,8 @@ class BagRecorder(SignalStop, Node):
             self.custom_data = {**bag_custom_data(scenario), "recorder": NODE_NAME}
         self.recording: Recording | None = None
         self._stop_reason: str | None = None
+        #: [the node's clock follows /clock (use_sim_time)], refreshed at every discovery pass.
+        self._sim_time = [self.get_clock().ros_time_is_active]
         self.get_logger().info(
             f"recording {len(self.topics)} topic(s) into {self.output} ({self.storage}), "
             f"flush every {self.flush_period_s:g} s: " + ", ".join(self.topics)
@@ -221,10 +223,13 @@ class BagRecorder(SignalStop, Node):
         except PayloadError as exc:
             self._warn_once(t, "inspector", f"{t.name}: cannot record {t.msgtype}: {exc}")
             return
-        handler, clock = t.handler, self.get_clock()
+        handler, clock, sim = t.handler, self.get_clock(), self._sim_time
+        time_ns = time.time_ns
 
         def on_message(payload: bytes) -> None:
-            handler(payload, clock.now().nanoseconds)
+            # The node's clock is the system clock unless use_sim_time is on: time.time_ns()
+            # then gives the same receive time for 0.05 µs instead of ~2 µs (clock.now()).
+            handler(payload, clock.now().nanoseconds if sim[0] else time_ns())
 
         t.subscription = self.create_subscription(
             message_class(t.msgtype), t.name, on_message, qos, raw=True
@@ -338,6 +343,7 @@ class BagRecorder(SignalStop, Node):
             if reporter is not None:
                 reporter.maybe_report(now)
             if now >= next_discovery:
+                self._sim_time[0] = self.get_clock().ros_time_is_active
                 self._discover()
                 next_discovery = now + self.discovery_period_s
                 if self.stop_when_done and self._publishers_gone():
