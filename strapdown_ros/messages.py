@@ -41,6 +41,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core._compiled import matmul33
 from strapdown_ros.core.earth import (
     body_rates_relative_to_earth,
     dcm_ned_to_ecef,
@@ -482,7 +483,7 @@ class _Truth:
     def c_frd_ned(self) -> F64:
         """``C_FRD^NED`` at t_m, m = 1..M (the Imu messages)."""
         lat, lon, _ = self.geodetic
-        return np.swapaxes(dcm_ned_to_ecef(lat[1:], lon[1:]), -1, -2) @ self.ecef[2][1:]
+        return matmul33(dcm_ned_to_ecef(lat[1:], lon[1:]), self.ecef[2][1:], transpose_a=True)
 
 
 def imu_fields(
@@ -576,7 +577,7 @@ def odometry_fields_from_ecef(
         frame_id=frame_id,
         child_frame_id=child_frame_id,
         position=r,
-        orientation=quat_ros_from_dcm(c @ C_FRD_TO_FLU),
+        orientation=quat_ros_from_dcm(matmul33(c, C_FRD_TO_FLU)),
         pose_covariance=_covariance(pose_covariance, n, 6, "pose_covariance"),
         twist_linear=frd_to_flu(v_b),
         twist_angular=frd_to_flu(w),
@@ -810,7 +811,7 @@ def imu_increments(imu: ImuFields, period_ns: int | None = None) -> ImuIncrement
 def odometry_state(odom: OdometryFields) -> EarthState:
     """Earth-referenced state (FRD body) of Odometry messages; inverse of
     :func:`odometry_fields_from_ecef` (to rounding of the quaternion)."""
-    c = dcm_from_quat_ros(odom.orientation) @ C_FRD_TO_FLU
+    c = matmul33(dcm_from_quat_ros(odom.orientation), C_FRD_TO_FLU)
     v_b = flu_to_frd(np.asarray(odom.twist_linear, dtype=np.float64))
     return EarthState(
         _stamps(odom.stamps_ns),

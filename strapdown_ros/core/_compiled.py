@@ -225,17 +225,18 @@ def _matmul33_kernel(a, b, transpose_a, out):
 def matmul33(a: np.ndarray, b: np.ndarray, transpose_a: bool = False) -> np.ndarray:
     """``a @ b`` (``aᵀ @ b`` with ``transpose_a``) for stacks of 3×3 matrices, same bits.
 
-    ``a``, ``b``: (N, 3, 3) or (3, 3) (broadcast over the other's N). Other shapes, and runs
-    without numba, fall back to numpy's ``@``.
+    ``a``, ``b``: (N, 3, 3) both, or one of them (3, 3) (broadcast over the other's N). Other
+    shapes, and runs without numba, fall back to numpy's ``@``.
     """
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
     ok = a.ndim in (2, 3) and b.ndim in (2, 3) and a.shape[-2:] == (3, 3) == b.shape[-2:]
+    ok = ok and not (a.ndim == b.ndim == 2) and (a.ndim == 2 or b.ndim == 2 or a.shape == b.shape)
+    if not (HAVE_NUMBA and ok):
+        return (np.swapaxes(a, -1, -2) if transpose_a else a) @ b
     n_a = a.shape[0] if a.ndim == 3 else 1
     n_b = b.shape[0] if b.ndim == 3 else 1
-    if not (HAVE_NUMBA and ok and (n_a == n_b or 1 in (n_a, n_b))) or a.ndim == b.ndim == 2:
-        return (np.swapaxes(a, -1, -2) if transpose_a else a) @ b
-    out = np.empty((max(n_a, n_b), 3, 3))
+    out = np.empty((n_a if a.ndim == 3 else n_b, 3, 3))
     _matmul33_kernel(
         np.ascontiguousarray(a.reshape(n_a, 3, 3)),
         np.ascontiguousarray(b.reshape(n_b, 3, 3)),
