@@ -68,6 +68,8 @@ DRAIN_TIMEOUT_S = 10.0
 GRACE_S = 0.5
 #: Longest time without servicing rclpy (parameter services, ...) while publishing.
 SPIN_EVERY_S = 0.05
+#: The same under flow control: the consumers' reports are taken at least this often.
+FLOW_SPIN_EVERY_S = 0.005
 
 
 class _Pieces:
@@ -228,6 +230,7 @@ class TrajectoryNode(Node):
             paced = self.rate_factor > 0 and gate is None
             errors, counts = self.errors, self.counts
             ok = self.context.ok
+            spin_every = SPIN_EVERY_S if gate is None else FLOW_SPIN_EVERY_S
             wall_start = time.monotonic()
             t_first = t_last = 0
             while (item := pieces.get(spin)) is not None:
@@ -253,7 +256,7 @@ class TrajectoryNode(Node):
                     pubs[k].publish(batches[k].payloads[i])
                     counts[topic] += 1
                     t_last = stamp
-                    if time.monotonic() - last_spin[0] > SPIN_EVERY_S:
+                    if time.monotonic() - last_spin[0] > spin_every:
                         spin(0.0)
             elapsed = time.monotonic() - wall_start
             self._log_summary(elapsed, (t_last - t_first) * 1e-9, pacer)
