@@ -615,6 +615,7 @@ class NavigationStage:
         self.final_errors: dict[str, float] = {}
         self._flush_pending: list[NavigatorOutputs] = []
         self._diverged = False  # the current run produced a non-finite solution
+        self.imu_frame: str | None = None  # frame_id of the Imu messages so far
         if period_ns is not None:
             self._set_period(int(period_ns), "given")
 
@@ -741,6 +742,8 @@ class NavigationStage:
         takes the one-message path, after the block before it.
         """
         is_imu, imu, truth = self._drop_nonfinite(is_imu, imu, truth)
+        if imu is not None and imu.fields is not None:  # one frame id in a decoded chunk
+            self._imu_frame_changed(imu.fields.frame_id, int(imu.stamps[0]))
         out: list[NavigatorOutputs] = []
         total = is_imu.size
         imu_before = np.concatenate([[0], np.cumsum(is_imu)])  # Imu rows before item k
@@ -880,6 +883,27 @@ class NavigationStage:
         self._add_truth(_rows(truth.states, slice(row, row + 1)))
         return []
 
+    def _imu_frame_changed(self, frame_id: str, stamp: int) -> bool:
+        """Whether the Imu ``frame_id`` differs from the messages' before it (another body):
+        then the run ends (its complete outputs are published) and a new one starts from the
+        truth."""
+        if self.imu_frame is None or frame_id == self.imu_frame:
+            self.imu_frame = frame_id
+            return False
+        self.events(
+            "wrong frame",
+            f"{self.spec.imu_topic}: stamp {format_stamp(stamp)}: Imu frame_id {frame_id!r} "
+            f"differs from {self.imu_frame!r} of the messages before (another body); the run "
+            "ends and a new run starts from the truth",
+            error=True,
+        )
+        self.imu_frame = frame_id
+        if self.run is not None:
+            self._flush_pending += self._outputs_of(self.run)
+            self.run = None
+        self.imu_buffer.clear()
+        return True
+
     def _wrong_frame(self, frame_id: str) -> None:
         self.events(
             "wrong frame",
@@ -917,6 +941,7 @@ class NavigationStage:
     def _on_imu_fields(self, fields: Any) -> list[NavigatorOutputs]:
         """One decoded Imu message; returns the output groups now complete."""
         stamp = int(fields.stamps_ns[0])
+        self._imu_frame_changed(fields.frame_id, stamp)
         if self.period_ns is None:
             # T is the first interval seen twice in a row (one interval may span a gap).
             if self.failed:

@@ -234,3 +234,25 @@ def test_navigator_never_publishes_a_diverged_solution(scenario, contents) -> No
     _finite(out, NAV)
     assert stage.events.counts.get("non-finite output", 0) == 1, log.lines
     assert stage.runs == 2 and stage.finished  # a new run from the truth reaches the end
+
+
+def _reframed(payload: bytes, frame_id: str) -> bytes:
+    fields = cdr.deserialize(cdr.IMU, [payload])
+    values = {f: getattr(fields, f) for f in fields.__dataclass_fields__}
+    values["frame_id"] = frame_id
+    return bytes(cdr.serialize(type(fields)(**values))[0])
+
+
+@pytest.mark.parametrize("size", [1, 7])
+def test_navigator_imu_frame_change(scenario, contents, size) -> None:
+    """The Imu frame changes mid-stream (another body): one event, the run ends, a new run from
+    the truth reaches the end."""
+    log = _Log()
+    stage = _navigator(scenario, log)
+    items = _live(contents, "/variation/imu", "/variation/odom", ("imu", "truth"))
+    items = items[:500] + [(k, _reframed(p, "other_imu") if k == "imu" else p)
+                           for k, p in items[500:]]  # fmt: skip
+    out = _feed(stage, items, size=size)
+    _finite(out, NAV)
+    assert stage.events.counts == {"wrong frame": 1}, log.lines
+    assert stage.runs == 2 and stage.finished
