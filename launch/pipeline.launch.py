@@ -3,7 +3,8 @@
     ros2 launch strapdown_ros pipeline.launch.py \
         scenario:=/path/to/scenario.yaml out:=/tmp/strapdown_run duration_s:=60.0
 
-Starts ``trajectory_node``, ``variation_node``, ``imu_model_node``, ``navigator_node`` and
+Starts ``trajectory_node``, ``variation_node``, ``imu_model_node``, ``navigator_node``,
+``aiding_node`` and
 ``bag_recorder`` with
 ``config/params.yaml`` (installed under ``share/strapdown_ros/config``) and the scenario file;
 the nodes' start-up handshake (``subscribers_per_topic``) makes the start order irrelevant.
@@ -13,7 +14,14 @@ imported inside :func:`generate_launch_description` so that this file imports (a
 and tested) without them.
 """
 
-NODES = ("trajectory_node", "variation_node", "imu_model_node", "navigator_node", "bag_recorder")
+NODES = (
+    "trajectory_node",
+    "variation_node",
+    "imu_model_node",
+    "navigator_node",
+    "aiding_node",
+    "bag_recorder",
+)
 
 
 def generate_launch_description():
@@ -69,6 +77,13 @@ def generate_launch_description():
             package="strapdown_ros",
             executable="navigator_node",
             name="navigator_node",
+            output="screen",
+            parameters=[params, common],
+        ),
+        Node(
+            package="strapdown_ros",
+            executable="aiding_node",
+            name="aiding_node",
             output="screen",
             parameters=[params, common],
         ),

@@ -24,6 +24,11 @@ from strapdown_ros.config import Scenario
 from strapdown_ros.config.navigator import navigator_spec
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
+from strapdown_ros.stages.aiding import (
+    aiding_custom_data,
+    aiding_spec,
+    generate_aiding_stream,
+)
 from strapdown_ros.stages.navigation import NavigationStage
 from strapdown_ros.stages.reference import (
     build_trajectory,
@@ -116,6 +121,7 @@ def bag_custom_data(scenario: Scenario) -> dict[str, str]:
         for key in ("preset", "seed"):  # the ones the file gives
             if key in scenario.imu_errors.model_fields_set:
                 data[f"imu_errors.{key}"] = str(getattr(scenario.imu_errors, key))
+    data.update(aiding_custom_data(aiding_spec(scenario)))
     return data
 
 
@@ -246,6 +252,9 @@ def generate_dataset(
 
     measured = generate_measured_stream(scenario)
 
+    # --- issue 16: aiding sensors from /reference/odom (docs/aiding.md) ---
+    aiding = generate_aiding_stream(scenario)
+
     def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
         streamer = None if scenario.variation is None else VariationStage.offline(scenario, total)
         navigator = None
@@ -261,6 +270,8 @@ def generate_dataset(
             if navigator is not None:
                 batches = batches + navigator.feed_batches(batches)
                 nav_errors = navigator.final_errors
+            if aiding is not None:  # issue 16: from /reference/odom, after every other stream
+                batches = batches + aiding.feed_batches(batches)
             yield piece.cycles, res, batches, nav_errors
 
     producer = _Producer(pieces())

@@ -177,7 +177,11 @@ def expected_counts(scenario: Scenario) -> dict[str, int]:
         outputs = imu_counts[key] // st.n + 1
         for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude"):
             per_key[f"navigator_{k}"] = outputs
-    return {names[k]: per_key[k] for k in produced_keys(scenario)}
+    from strapdown_ros.stages.aiding import aiding_expected_counts
+
+    out = {names[k]: per_key[k] for k in produced_keys(scenario)}
+    out.update(aiding_expected_counts(scenario, cycles))  # issue 16
+    return out
 
 
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child
@@ -324,6 +328,7 @@ def run_pipeline(
     """
     from strapdown_ros.bag.reader import read_bag
     from strapdown_ros.config.navigator import navigator_spec
+    from strapdown_ros.stages.aiding import aiding_spec
 
     t_start = time.monotonic()
     scenario = load_scenario(scenario_path, list(overrides), duration_s)
@@ -354,6 +359,9 @@ def run_pipeline(
         subs[topics["reference_odom"]] += 1
     if scenario.imu_errors is not None:
         subs[scenario.imu_errors.topics(topics)[0]] += 1
+    aiding_topics = aiding_spec(scenario).topics() if aiding_spec(scenario) else []
+    if aiding_topics:
+        subs[topics["reference_odom"]] += 1
     if nav is not None:
         subs[nav.imu_topic] += 1
         if nav.truth_topic:
@@ -407,6 +415,11 @@ def run_pipeline(
             flow_nodes.append("navigator_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("navigator_node subscribed")
+        if aiding_topics:  # issue 16
+            node = start("aiding_node", per_topic(aiding_topics), *node_params)
+            flow_nodes.append("aiding_node")
+            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
+            say("aiding_node subscribed")
         if scenario.imu_errors is not None:
             measured = scenario.imu_errors.topics(topics)[1]
             node = start("imu_model_node", per_topic([measured]), *node_params)

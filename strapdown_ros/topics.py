@@ -85,7 +85,11 @@ def produced_topics(scenario: Scenario) -> dict[str, str]:
         from strapdown_ros.stages.measurement import imu_model_topics
 
         names["variation_imu_measured"] = imu_model_topics(scenario)[1]
-    return {names[key]: MSGTYPES[key] for key in produced_keys(scenario)}
+    out = {names[key]: MSGTYPES[key] for key in produced_keys(scenario)}
+    from strapdown_ros.stages.aiding import aiding_topic_types
+
+    out.update(aiding_topic_types(scenario))  # issue 16
+    return out
 
 
 def spec_topics() -> dict[str, str]:

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from strapdown_ros.config.aiding import AIDING_TOPICS
+
 REPO = Path(__file__).resolve().parent.parent
 TOOL = REPO / "tools" / "compare_generate.py"
 BASE = "7249607"
@@ -62,11 +64,12 @@ def test_generate_is_bit_identical_to_the_base(scenario: Path) -> None:
         pytest.skip(why)
     proc = subprocess.run(
         [sys.executable, str(TOOL), "--base", BASE, "--duration-cap", DURATION_CAP_S,
-         str(scenario)],
+         "--allow-new-topics", ",".join(AIDING_TOPICS.values()), str(scenario)],
         cwd=REPO, capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     out = proc.stdout + proc.stderr
-    assert f"{scenario.stem}: identical (" in proc.stdout, out
+    new = f"{scenario.stem}: new since {BASE}, not compared" in proc.stdout
+    assert new or f"{scenario.stem}: identical (" in proc.stdout, out
     assert proc.returncode == 0, out
 
 
@@ -113,3 +116,23 @@ def test_compare_bags_detects_counts_and_topics(tmp_path: Path) -> None:
     assert tool.compare_bags(a, _write_bag(tmp_path / "b", [0.1, 0.2])) == ["/v: 3 != 2 messages"]
     problems = tool.compare_bags(a, _write_bag(tmp_path / "c", [0.1, 0.2, 0.3], topic="/w"))
     assert problems and problems[0].startswith("topics differ"), problems
+
+
+def test_compare_bags_allows_only_named_new_topics(tmp_path: Path) -> None:
+    """A topic only in the new bag is no difference when allowed; a missing one always is."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    tool = _compare_generate()
+    store = get_typestore(Stores.ROS2_JAZZY)
+    base = _write_bag(tmp_path / "base", [0.1, 0.2])
+    new = tmp_path / "new"
+    msgtype = "geometry_msgs/msg/Vector3Stamped"
+    with Writer(new, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for topic in ("/v", "/gnss/fix"):
+            conn = writer.add_connection(topic, msgtype, typestore=store)
+            for i, payload in enumerate(tool.read_messages(base)["/v"][1]):
+                writer.write(conn, i * 10**9, payload[1])
+    assert tool.compare_bags(base, new) == ["topics differ: ['/gnss/fix']"]
+    assert tool.compare_bags(base, new, allow_new=frozenset({"/gnss/fix"})) == []
+    assert tool.compare_bags(new, base, allow_new=frozenset({"/gnss/fix"})) != []

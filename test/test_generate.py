@@ -170,6 +170,11 @@ def test_default_scenario_reintegration_drift_below_1e4_m(tmp_path):
         "/variation/imu_measured": 119_998,  # imu_errors (tactical preset) on /variation/imu
         # the navigator (N = 10) on /variation/imu: the initial state and 11 999 T_nav cycles
         **{f"/navigator/{t}": 12_000 for t in NAV_TOPICS},
+        # aiding (issue 16): GNSS at 5 Hz, barometer at 25 Hz, magnetometer at 50 Hz
+        "/gnss/fix": 3001,
+        "/gnss/vel": 3001,
+        "/baro/pressure": 15_001,
+        "/mag": 30_001,
     }
     assert all(r.within_spec() for r in summary.residuals.values())
     # Issue 5 acceptance: the high-accuracy navigator on ideal data at its own fast rate stays

@@ -33,7 +33,14 @@ REPO = Path(__file__).resolve().parent.parent
 PARAMS = REPO / "config" / "params.yaml"
 LAUNCH = REPO / "launch" / "pipeline.launch.py"
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-NODES = ("trajectory_node", "variation_node", "imu_model_node", "navigator_node", "bag_recorder")
+NODES = (
+    "trajectory_node",
+    "variation_node",
+    "imu_model_node",
+    "navigator_node",
+    "aiding_node",
+    "bag_recorder",
+)
 NO_LAUNCH = (
     "launch/launch_ros are not installed: the ROS 2 Jazzy wheels from PyPI used here do not ship "
     "them (only a ROS install does). Checked instead: the launch file imports without them and "

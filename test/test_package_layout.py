@@ -34,6 +34,7 @@ CONSOLE_SCRIPTS = {
     "variation_node": "strapdown_ros.nodes.variation_node:main",
     "navigator_node": "strapdown_ros.nodes.navigator_node:main",
     "imu_model_node": "strapdown_ros.nodes.imu_model_node:main",
+    "aiding_node": "strapdown_ros.nodes.aiding_node:main",
     "bag_recorder": "strapdown_ros.nodes.bag_recorder:main",
     "bag_player": "strapdown_ros.nodes.bag_player:main",
 }

@@ -38,6 +38,7 @@ EVERY_PLOT = (
     "navigation_errors",
     "method_comparison",
     "allan",
+    "aiding",  # default.yaml has aiding sensors (issue 16)
 )
 
 
@@ -267,7 +268,7 @@ def test_rerun_replaces_old_plots(bags: dict[str, Path]) -> None:
         p.name for p in result.plots.values()
     )
     assert "not requested (--no-exactness)" in result.markdown.read_text(encoding="utf-8")
-    assert len(PLOT_FILES) == 7
+    assert len(PLOT_FILES) == 8
 
 
 def test_fix_only_bag(tmp_path: Path, bags: dict[str, Path]) -> None:

@@ -108,15 +108,22 @@ def _numbers_equal(a: object, b: object, ignore_strings: bool, where: str) -> st
     return None
 
 
-def compare_bags(base: Path, new: Path, ignore_strings: bool = False) -> list[str]:
-    """Differences between two bags (empty: identical numbers, and payloads unless strings)."""
+def compare_bags(
+    base: Path, new: Path, ignore_strings: bool = False, allow_new: frozenset = frozenset()
+) -> list[str]:
+    """Differences between two bags (empty: identical numbers, and payloads unless strings).
+
+    Topics only in ``new`` that ``allow_new`` names (e.g. a new section's) are not a
+    difference; every topic of ``base`` must still be identical.
+    """
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
     a, b = read_messages(base), read_messages(new)
     problems: list[str] = []
-    if sorted(a) != sorted(b):
-        problems.append(f"topics differ: {sorted(set(a) ^ set(b))}")
+    differ = (set(a) ^ set(b)) - ((set(b) - set(a)) & set(allow_new))
+    if differ:
+        problems.append(f"topics differ: {sorted(differ)}")
     for topic in sorted(set(a) & set(b)):
         (type_a, msgs_a), (type_b, msgs_b) = a[topic], b[topic]
         if type_a != type_b:
@@ -155,6 +162,10 @@ def main(argv: list[str] | None = None) -> int:
         help="let string fields (frame ids) differ; numbers must still match",
     )
     parser.add_argument("--keep", default=None, help="keep the bags in this directory")
+    parser.add_argument(
+        "--allow-new-topics", default="", metavar="T1,T2",
+        help="topics the working tree may add (a new section's); the base's must match",
+    )
     args = parser.parse_args(argv)
     shipped = sorted((ROOT / "config/scenarios").glob("*.yaml"))
     scenarios = [Path(s) for s in args.scenarios] or shipped
@@ -166,6 +177,9 @@ def main(argv: list[str] | None = None) -> int:
         for scenario in scenarios:
             scenario = scenario.resolve()
             base_scenario = source / scenario.relative_to(ROOT)
+            if not base_scenario.exists() and scenario.is_relative_to(ROOT / "config"):
+                print(f"{scenario.stem}: new since {args.base}, not compared")
+                continue
             duration = None
             if args.duration_cap is not None:
                 import yaml
@@ -178,7 +192,8 @@ def main(argv: list[str] | None = None) -> int:
                      work / f"{name}.base", duration)  # fmt: skip
             generate(None, scenario, work / f"{name}.new", duration)
             base_bag, new_bag = work / f"{name}.base", work / f"{name}.new"
-            problems = compare_bags(base_bag, new_bag, args.ignore_strings)
+            allow = frozenset(t for t in args.allow_new_topics.split(",") if t)
+            problems = compare_bags(base_bag, new_bag, args.ignore_strings, allow)
             counts = {t: len(m) for t, (_, m) in read_messages(new_bag).items()}
             total = sum(counts.values())
             if problems:

@@ -83,11 +83,14 @@ class Recording:
         self.first_receive_ns: int | None = None
         self.last_receive_ns: int | None = None
 
-    def handler(self, topic: str, msgtype: str, qos: Callable[[], Sequence[Qos]]) -> Handler:
+    def handler(
+        self, topic: str, msgtype: str, qos: Callable[[], Sequence[Qos]], delay_ns: int = 0
+    ) -> Handler:
         """Return the function recording the messages of ``topic``.
 
         ``qos()`` gives the offered QoS profiles to store; it is called with the first message
-        (when the topic enters the bag).
+        (when the topic enters the bag). ``delay_ns`` is added to a header-stamp log time
+        (the GNSS latency of the aiding topics: their log time is the publication time).
         """
         inspector = PayloadInspector(msgtype)
         stats = self.stats.setdefault(topic, TopicStats(topic, msgtype))
@@ -112,6 +115,8 @@ class Recording:
                 if len(payload) != n:
                     stats.padded += 1
             t = stamp_ns(payload) if use_stamp else None
+            if t is not None and delay_ns:
+                t += delay_ns
             if t is None:
                 t = receive_ns
                 stats.receive_time_logs += 1

@@ -19,6 +19,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
+from strapdown_ros.config.aiding import AidingSpec, check_aiding
 from strapdown_ros.config.base import (
     Finite,
     Model,
@@ -154,6 +155,7 @@ class Scenario(Model):
     variation: VariationSpec | None = None  # SECTION variation
     navigator: NavigatorSpec | None = None  # SECTION navigator
     imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
+    aiding: AidingSpec | None = None  # SECTION aiding
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -225,6 +227,7 @@ class Scenario(Model):
             )
         check_trajectory(self)
         check_imu_errors(self)
+        check_aiding(self)
         check_navigator(self)
         check_variation(self)
         return self

@@ -165,6 +165,11 @@ class BagRecorder(SignalStop, Node):
                 self._check_type("topics", name, msgtype)
             self.topics[name] = _Topic(name, msgtype)
         self.custom_data = {"generator": "strapdown_ros", "recorder": NODE_NAME}
+        self.log_delays: dict[str, int] = {}  # issue 16: GNSS latency
+        if scenario is not None:
+            from strapdown_ros.stages.aiding import aiding_log_delays
+
+            self.log_delays = aiding_log_delays(scenario)
         if scenario is not None:
             from strapdown_ros.generate import bag_custom_data
 
@@ -219,7 +224,9 @@ class BagRecorder(SignalStop, Node):
         qos = self._subscription_qos(infos)
         t.offered = _distinct([_offered_qos(i.qos_profile) for i in infos])
         try:
-            t.handler = self.recording.handler(t.name, t.msgtype, lambda t=t: self._offered(t))
+            t.handler = self.recording.handler(
+                t.name, t.msgtype, lambda t=t: self._offered(t), self.log_delays.get(t.name, 0)
+            )
         except PayloadError as exc:
             self._warn_once(t, "inspector", f"{t.name}: cannot record {t.msgtype}: {exc}")
             return

@@ -40,6 +40,7 @@ PLOT_FILES = (
     "navigation_errors*.png",
     "method_comparison*.png",
     "allan*.png",
+    "aiding.png",
 )
 
 
@@ -228,6 +229,19 @@ def write_report(
                  "and measured).", plots.plot_allan, mi, data.name)  # fmt: skip
     else:
         result.omitted["allan"] = "no measured IMU topic (`P/imu_measured`)"
+
+    # --- aiding sensors (issue 16)
+    from strapdown_ros.report.aiding import aiding_errors, aiding_table, plot_aiding
+
+    aiding = aiding_errors(data.contents, data.start_ns)
+    if aiding:
+        sections += ["", "## Aiding sensors", ""] + aiding_table(aiding)
+        draw("aiding", "aiding.png",
+             "Aiding sensors: measured minus truth per topic with the ±σ band of the message "
+             "covariance; outages shaded.", plot_aiding, aiding, f"{data.name}: aiding "
+             "sensors")  # fmt: skip
+    else:
+        result.omitted["aiding"] = "no aiding topic (`/gnss/fix`, `/baro/pressure`, ...)"
 
     result.elapsed_s = time.perf_counter() - start
     md += sections
