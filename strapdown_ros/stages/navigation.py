@@ -742,7 +742,7 @@ class NavigationStage:
         takes the one-message path, after the block before it.
         """
         is_imu, imu, truth = self._drop_nonfinite(is_imu, imu, truth)
-        if imu is not None and imu.fields is not None:  # one frame id in a decoded chunk
+        if imu is not None and imu.fields is not None and imu.stamps.size:  # one frame id
             self._imu_frame_changed(imu.fields.frame_id, int(imu.stamps[0]))
         out: list[NavigatorOutputs] = []
         total = is_imu.size
