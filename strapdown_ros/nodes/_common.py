@@ -369,7 +369,13 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
     """
     from strapdown_ros.config import ScenarioError
 
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rcl's RCLError: e.g. an unparsable --ros-args rule
+        import sys
+
+        print(f"{name}: invalid command-line arguments: {exc}", file=sys.stderr)
+        return EXIT_INVALID
     logger = rclpy.logging.get_logger(name)
     node = None
     executor: Executor | None = None
