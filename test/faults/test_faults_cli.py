@@ -252,3 +252,48 @@ def test_not_a_bag(tmp_path, command, bag) -> None:
         assert "does not read" in proc.stdout or "not" in proc.stdout, proc.stdout
     else:
         assert proc.returncode != 0 and proc.stderr.strip(), proc.stdout + proc.stderr
+
+
+@pytest.fixture(scope="module")
+def small_bag(tmp_path_factory):
+    out = tmp_path_factory.mktemp("faults_cli") / "bag"
+    proc = _cli("generate", str(SCENARIO), "--duration", "20", "--out", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_replay_ctrl_c(small_bag, tmp_path, ros_env) -> None:
+    """Ctrl-C on ``replay``: exit 130, what was recorded summarized, no traceback, no process
+    left."""
+    env = _env(ros_env)
+    env["FAULTS_TMP"] = str(tmp_path)
+    out = tmp_path / "replayed"
+    rc, err, _ = _interrupt(
+        ["replay", str(small_bag), "--into", "navigator", "--out", str(out)], 2.0, env,
+        wait_for="playing",
+    )  # fmt: skip
+    _no_traceback(err)
+    assert rc == 130 and "interrupted" in err, err
+    for log in (out.parent / f"{out.name}.logs").glob("*.log"):
+        _no_traceback(log.read_text(errors="replace"))
+    time.sleep(1.0)
+    assert not _processes_with(f"FAULTS_TMP={tmp_path}".encode()), "orphan processes"
+
+
+def test_interrupted_recording_gives_reasons(small_bag, tmp_path) -> None:
+    """A bag whose recording was interrupted (no metadata.yaml): check, report and bag info say
+    why and name ``bag repair``; after the repair it checks out."""
+    import shutil
+
+    bag = tmp_path / "bag"
+    shutil.copytree(small_bag, bag)
+    (bag / "metadata.yaml").unlink()
+    for command in (["check"], ["report"], ["bag", "info"]):
+        proc = _cli(*command, str(bag), timeout=120)
+        _no_traceback(proc.stderr + proc.stdout)
+        assert "repair" in proc.stderr + proc.stdout, (command, proc.stdout + proc.stderr)
+    proc = _cli("bag", "repair", str(bag), timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = _cli("check", str(bag), timeout=120)
+    _no_traceback(proc.stderr)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
