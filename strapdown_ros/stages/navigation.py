@@ -1135,11 +1135,9 @@ class NavigationStage:
     def _finite_outputs(self, out: NavigatorOutputs) -> NavigatorOutputs | None:
         """``out`` without the outputs holding a non-finite number (a diverged solution, e.g.
         an unstable vertical channel): never published, each stretch logged."""
-        bad = None
-        for _, fields in out.items():
-            rows = nonfinite_rows(fields)
-            if rows is not None:
-                bad = rows if bad is None else bad | rows
+        # The odometry holds the whole solution (the fix and, with finite truth, the errors are
+        # computed from it): checking it is enough.
+        bad = nonfinite_rows(out.odom)
         if bad is None:
             return None if len(out) == 0 else out
         stamps = np.asarray(out.odom.stamps_ns, dtype=np.int64)
