@@ -73,6 +73,14 @@ def random_fields(rng, msgtype, frame="abc", child="child"):
         )
     if msgtype == cdr.CLOCK:
         return msg.ClockFields(t)
+    if msgtype == cdr.TWIST_WITH_COVARIANCE_STAMPED:  # aiding (issue 16)
+        return msg.TwistWithCovarianceStampedFields(
+            t, frame, g(size=(n, 3)), g(size=(n, 3)), g(size=(n, 36))
+        )
+    if msgtype == cdr.FLUID_PRESSURE:
+        return msg.FluidPressureFields(t, frame, g(size=n), g(size=n))
+    if msgtype == cdr.MAGNETIC_FIELD:
+        return msg.MagneticFieldFields(t, frame, g(size=(n, 3)), g(size=(n, 9)))
     return msg.Vector3StampedFields(t, frame, g(size=(n, 3)))
 
 
@@ -125,6 +133,26 @@ def rosbags_message(f, i):
             altitude=f.altitude[i],
             position_covariance=f.position_covariance[i],
             position_covariance_type=int(f.position_covariance_type[i]),
+        )
+    if isinstance(f, msg.TwistWithCovarianceStampedFields):
+        return T[cdr.TWIST_WITH_COVARIANCE_STAMPED](
+            header=header,
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](
+                    linear=vec(*f.linear[i]), angular=vec(*f.angular[i])
+                ),
+                covariance=f.covariance[i],
+            ),
+        )
+    if isinstance(f, msg.FluidPressureFields):
+        return T[cdr.FLUID_PRESSURE](
+            header=header, fluid_pressure=f.fluid_pressure[i], variance=f.variance[i]
+        )
+    if isinstance(f, msg.MagneticFieldFields):
+        return T[cdr.MAGNETIC_FIELD](
+            header=header,
+            magnetic_field=vec(*f.magnetic_field[i]),
+            magnetic_field_covariance=f.magnetic_field_covariance[i],
         )
     return T[cdr.VECTOR3_STAMPED](header=header, vector=vec(*f.vector[i]))
 
