@@ -158,11 +158,8 @@ def derived_counts(
         if nav:
             ratio = 1
             if spec.navigator_rate_hz is not None:
-                from strapdown_ros.config.navigator import navigator_spec
-
-                nav_spec = navigator_spec(scenario)
-                assert nav_spec is not None
-                ratio = round(1e9 / spec.navigator_rate_hz) // (scenario.period_ns * nav_spec.n)
+                n = int(getattr(scenario.navigator, "n", 1))
+                ratio = round(1e9 / spec.navigator_rate_hz) // (scenario.period_ns * n)
             n += _every(nav, ratio)
         out[_topic(scenario, "tf_static")] = 1
         out[_topic(scenario, "tf")] = n
@@ -220,14 +217,11 @@ class FramesStage:
         self.scenario = scenario
         self.datum = datum if datum is not None else scenario_datum(scenario)
         nav_period = None
-        if scenario.navigator is not None:
-            from strapdown_ros.config.navigator import navigator_spec
-
-            nav = navigator_spec(scenario)
-            if nav is not None:
-                nav_period = scenario.period_ns * nav.n
-                if spec.navigator_rate_hz is not None:
-                    nav_period = int(round(1e9 / spec.navigator_rate_hz))
+        if scenario.navigator is not None:  # the section as written: N (no topic resolution,
+            # which a node's renamed topics would fail)
+            nav_period = scenario.period_ns * int(getattr(scenario.navigator, "n", 1))
+            if spec.navigator_rate_hz is not None:
+                nav_period = int(round(1e9 / spec.navigator_rate_hz))
         body = scenario.period_ns
         if spec.body_rate_hz is not None:
             body = int(round(1e9 / spec.body_rate_hz))
