@@ -1,14 +1,14 @@
 """Benchmark: highest IMU rate the live pipeline records with zero loss in real time, reproducibly.
 
-Runs the whole live pipeline (``strapdown-sim run``: trajectory, variation, imu_model and
-navigator nodes + bag_recorder, separate processes, real DDS over loopback, ``rate_factor`` 1 =
-real time, so no flow control) on ``default.yaml`` shortened to ``--duration`` seconds, at
-each IMU rate ``--repeats`` times (default 3), and checks each recording against the message
-counts the scenario produces and, payload for payload, against ``strapdown-sim generate``'s
-bag of the same scenario. A rate counts only if **every** run of it had zero loss and identical
-payloads; the worst run of each rate is reported. The machine load (1-minute load average, as
-``uptime`` prints it) is sampled before and after every run: figures taken under load from other
-jobs are not those of an idle machine.
+Runs the whole live pipeline (``strapdown-sim run``: trajectory, variation, imu_model, navigator
+and aiding nodes + bag_recorder, separate processes, real DDS over loopback, ``rate_factor`` 1 =
+real time, so no flow control) on ``default.yaml`` shortened to ``--duration`` seconds, at each
+IMU rate ``--repeats`` times (default 3), and checks each recording against the message counts
+the scenario produces and, payload for payload, against ``strapdown-sim generate``'s bag of the
+same scenario. A rate counts only if **every** run of it had zero loss and identical payloads;
+the worst run of each rate is reported. The machine load (1-minute load average, as ``uptime``
+prints it) is sampled before and after every run: figures taken under load from other jobs are
+not those of an idle machine.
 
 Also printed per run: the CPU time of each process (user + system, start-up included) and the
 total CPU per recorded message. ``--profile DIR`` writes a cProfile of every node process of the
@@ -34,7 +34,10 @@ from strapdown_ros.pipeline import PROFILE_ENV, PipelineError, run_pipeline
 
 SCENARIO = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 TARGET_HZ = 1000.0
-NODES = ("trajectory_node", "variation_node", "imu_model_node", "navigator_node", "bag_recorder")
+NODES = (
+    "trajectory_node", "variation_node", "imu_model_node", "navigator_node", "aiding_node",
+    "bag_recorder",
+)  # fmt: skip
 
 
 def _uptime() -> str:
