@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.navigator import navigator_spec
@@ -29,6 +30,7 @@ from strapdown_ros.stages.aiding import (
     aiding_spec,
     generate_aiding_stream,
 )
+from strapdown_ros.stages.frames import STATIC_QOS, FramesStage, static_topic
 from strapdown_ros.stages.navigation import NavigationStage
 from strapdown_ros.stages.reference import (
     build_trajectory,
@@ -260,6 +262,10 @@ def generate_dataset(
         navigator = None
         if scenario.navigator is not None:
             navigator = NavigationStage.for_scenario(scenario, period_ns=scenario.period_ns)
+        # TF, map-frame odometry and increments of every stage's output (docs/interface.md)
+        offsets = None if streamer is None else streamer.offsets
+        frames = FramesStage(scenario, offsets=offsets, cycles=total)
+        static = frames.static_batch()
         for piece, batches in reference_batch_chunks(scenario, trajectory):
             res = {"reference": stream_residuals(piece)}
             if streamer is not None:
@@ -272,6 +278,9 @@ def generate_dataset(
                 nav_errors = navigator.final_errors
             if aiding is not None:  # issue 16: from /reference/odom, after every other stream
                 batches = batches + aiding.feed_batches(batches)
+            batches = batches + frames.feed_batches(batches)
+            if static is not None:  # /tf_static once, at t0, first
+                batches, static = [static, *batches], None
             yield piece.cycles, res, batches, nav_errors
 
     producer = _Producer(pieces())
@@ -280,6 +289,9 @@ def generate_dataset(
     try:
         custom_data = bag_custom_data(scenario)
         with BagWriter(out, storage=storage, force=force, custom_data=custom_data) as writer:
+            tf_static = static_topic(scenario)
+            if tf_static is not None:  # offered as a latched publisher's (ros2 bag play keeps it)
+                writer.add_topic(tf_static, TF_MESSAGE, qos=STATIC_QOS)
             for cycles, res, batches, nav_errors in producer:  # type: ignore[misc]
                 writer.write_batches(batches)
                 summary.navigation = nav_errors

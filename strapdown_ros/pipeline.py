@@ -181,6 +181,12 @@ def expected_counts(scenario: Scenario) -> dict[str, int]:
 
     out = {names[k]: per_key[k] for k in produced_keys(scenario)}
     out.update(aiding_expected_counts(scenario, cycles))  # issue 16
+    # derived topics (TF, map-frame odometry, increments: docs/interface.md)
+    from strapdown_ros.stages.frames import FramesStage, derived_counts
+
+    static = FramesStage(scenario, cycles=cycles).variation_is_static()
+    produced = {k: per_key[k] for k in produced_keys(scenario)}
+    out.update(derived_counts(scenario, produced, variation_static=static))
     return out
 
 
@@ -371,6 +377,14 @@ def run_pipeline(
         items = [f"'{t}={subs[t]}'" for t in names if t in subs]
         return "subscribers_per_topic:=[" + ",".join(items) + "]"
 
+    # each node also publishes what FramesStage derives from its outputs (TF, map odometry)
+    from strapdown_ros.stages.frames import FramesStage, node_derived_topics
+
+    frames = FramesStage(scenario, cycles=max(expected.get(topics["reference_odom"], 1) - 1, 0))
+
+    def with_derived(names: list[str], static: bool = False) -> list[str]:
+        return names + list(node_derived_topics(frames, names, static=static))
+
     def ros_args(*params: str) -> list[str]:
         args = ["--ros-args"]
         for p in (*common, *params):
@@ -411,7 +425,7 @@ def run_pipeline(
                 topics[f"navigator_{k}"]
                 for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude")
             ]
-            node = start("navigator_node", per_topic(outs), *node_params)
+            node = start("navigator_node", per_topic(with_derived(outs)), *node_params)
             flow_nodes.append("navigator_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("navigator_node subscribed")
@@ -422,7 +436,7 @@ def run_pipeline(
             say("aiding_node subscribed")
         if scenario.imu_errors is not None:
             measured = scenario.imu_errors.topics(topics)[1]
-            node = start("imu_model_node", per_topic([measured]), *node_params)
+            node = start("imu_model_node", per_topic(with_derived([measured])), *node_params)
             flow_nodes.append("imu_model_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("imu_model_node subscribed")
@@ -437,7 +451,7 @@ def run_pipeline(
                     "variation_reference_odom",
                 )
             ]
-            node = start("variation_node", per_topic(outs), *node_params)
+            node = start("variation_node", per_topic(with_derived(outs)), *node_params)
             flow_nodes.append("variation_node")
             node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
             say("variation_node subscribed")
@@ -453,7 +467,8 @@ def run_pipeline(
             traj_params.append("flow_nodes:=[" + ",".join(f"'{n}'" for n in flow_nodes) + "]")
         say(f"trajectory_node: {data_s:g} s of data, {pace}")
         traj = start(
-            "trajectory_node", per_topic(traj_topics), f"time_source:={time_source}",
+            "trajectory_node", per_topic(with_derived(traj_topics, static=True)),
+            f"time_source:={time_source}",
             "wait_for_all_topics:=false", *traj_params,
         )  # fmt: skip
         deadline = time.monotonic() + timeout_s

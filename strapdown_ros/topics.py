@@ -89,7 +89,10 @@ def produced_topics(scenario: Scenario) -> dict[str, str]:
     from strapdown_ros.stages.aiding import aiding_topic_types
 
     out.update(aiding_topic_types(scenario))  # issue 16
-    return out
+    # TF, map-frame odometry and increments derived from them (docs/interface.md)
+    from strapdown_ros.stages.frames import derived_topics
+
+    return {**out, **derived_topics(scenario, out)}
 
 
 def spec_topics() -> dict[str, str]:

@@ -33,6 +33,7 @@ from strapdown_ros.config.base import (
 )
 from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator
+from strapdown_ros.config.tf import TFSpec, check_tf
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
 
@@ -68,6 +69,10 @@ DEFAULT_TOPICS: dict[str, str] = {
     "navigator_error_velocity": "/navigator/error/velocity",
     "navigator_error_attitude": "/navigator/error/attitude",
     "clock": "/clock",
+    # TF (docs/interface.md "Frames and TF"); derived topics are named after their source
+    # topic: <odom>_map, <imu>_dv, <imu>_dq
+    "tf": "/tf",
+    "tf_static": "/tf_static",
 }
 
 #: Default frame ids.
@@ -75,6 +80,8 @@ DEFAULT_FRAMES: dict[str, str] = {
     "earth": "earth",
     "reference_imu": "reference_imu",
     "variation_imu": "variation_imu",
+    "map": "map",
+    "base_link": "base_link",
 }
 
 
@@ -123,6 +130,8 @@ class Recording(Model):
     topics: dict[str, str] = Field(default_factory=lambda: dict(DEFAULT_TOPICS))
     frames: dict[str, str] = Field(default_factory=lambda: dict(DEFAULT_FRAMES))
     clock: StrictBool = False
+    #: Δv / Δq topics beside each Imu topic (docs/interface.md §4)
+    increments: StrictBool = False
 
     @field_validator("topics", mode="before")
     @classmethod
@@ -155,6 +164,7 @@ class Scenario(Model):
     variation: VariationSpec | None = None  # SECTION variation
     navigator: NavigatorSpec | None = None  # SECTION navigator
     imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
+    tf: TFSpec | None = None  # SECTION tf (config/tf.py): TF, map datum, map odometry
     aiding: AidingSpec | None = None  # SECTION aiding
     recording: Recording = Field(default_factory=Recording)
 
@@ -230,6 +240,7 @@ class Scenario(Model):
         check_aiding(self)
         check_navigator(self)
         check_variation(self)
+        check_tf(self)
         return self
 
 

@@ -39,10 +39,11 @@ from rosbags.interfaces import (
     QosTime,
 )
 
+from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.incremental import IncrementalBagWriter
 from strapdown_ros.bag.payload import PayloadError, PayloadInspector
 from strapdown_ros.bag.recording import LOG_TIMES, Handler, Recording
-from strapdown_ros.bag.writer import STORAGES, BagWriteError, looks_like_bag
+from strapdown_ros.bag.writer import DEFAULT_QOS, STORAGES, BagWriteError, looks_like_bag
 from strapdown_ros.config import load_scenario
 from strapdown_ros.nodes._common import (
     EXIT_FAILURE,
@@ -57,6 +58,8 @@ from strapdown_ros.nodes._common import (
     message_class,
     run_node,
 )
+from strapdown_ros.nodes._frames import tf_unavailable
+from strapdown_ros.stages.frames import STATIC_QOS, FramesStage
 from strapdown_ros.topics import produced_topics, spec_topics
 
 NODE_NAME = "bag_recorder"
@@ -159,6 +162,27 @@ class BagRecorder(SignalStop, Node):
             wanted = dict(produced_topics(scenario))
         else:
             wanted = dict(spec_topics())
+        # Without tf2_msgs, /tf and /tf_static cannot be received: derived here from the recorded
+        # Odometry with the code generate uses (same bytes), and said so in the bag.
+        self._derive: FramesStage | None = None
+        self._derived_tf: dict[str, Handler | None] = {}
+        if scenario is not None and not topic_specs:
+            tf_topics = [n for n, m in wanted.items() if m == TF_MESSAGE]
+            error = tf_unavailable() if tf_topics else None
+            if error is not None:
+                from strapdown_ros.stages.reference import build_trajectory, output_cycles
+
+                cycles = output_cycles(scenario, build_trajectory(scenario))
+                self._derive = FramesStage(scenario, cycles=cycles)
+                for name in tf_topics:
+                    wanted.pop(name)
+                    self._derived_tf[name] = None
+                self.get_logger().warning(
+                    f"tf2_msgs/msg/TFMessage is not importable ({error}): "
+                    f"{', '.join(tf_topics)} cannot be received; they are derived from the "
+                    "recorded Odometry with the code generate uses (FramesStage), and the bag's "
+                    "custom_data says so (tf: derived by bag_recorder)"
+                )
         self.topics: dict[str, _Topic] = {}
         for name, msgtype in wanted.items():
             if msgtype is not None:
@@ -174,6 +198,8 @@ class BagRecorder(SignalStop, Node):
             from strapdown_ros.generate import bag_custom_data
 
             self.custom_data = {**bag_custom_data(scenario), "recorder": NODE_NAME}
+        if self._derive is not None:
+            self.custom_data["tf"] = "derived by bag_recorder from the recorded Odometry"
         self.recording: Recording | None = None
         self._stop_reason: str | None = None
         #: [the node's clock follows /clock (use_sim_time)], refreshed at every discovery pass.
@@ -237,6 +263,17 @@ class BagRecorder(SignalStop, Node):
             # The node's clock is the system clock unless use_sim_time is on: time.time_ns()
             # then gives the same receive time for 0.05 µs instead of ~2 µs (clock.now()).
             handler(payload, clock.now().nanoseconds if sim[0] else time_ns())
+
+        derive, tf_handlers = self._derive, self._derived_tf
+        if derive is not None and t.name in derive.odom_topics:
+
+            def on_message(payload: bytes) -> None:  # noqa: F811  (and the TF derived from it)
+                now = clock.now().nanoseconds if sim[0] else time_ns()
+                handler(payload, now)
+                for topic, _, data in derive.derive_items([(t.name, 0, payload)]):
+                    record = tf_handlers.get(topic)
+                    if record is not None:
+                        record(data, now)
 
         t.subscription = self.create_subscription(
             message_class(t.msgtype), t.name, on_message, qos, raw=True
@@ -317,6 +354,17 @@ class BagRecorder(SignalStop, Node):
         self.recording = Recording(
             writer, log_time=self.log_time, flush_period_s=self.flush_period_s
         )
+        if self._derive is not None:  # derived TF (tf2_msgs missing): /tf_static at once
+            static = self._derive.tf_static_topic
+            for name in self._derived_tf:
+                qos = [STATIC_QOS] if name == static else [DEFAULT_QOS]
+                self._derived_tf[name] = self.recording.handler(
+                    name, TF_MESSAGE, lambda qos=qos: qos
+                )
+            batch = self._derive.static_batch()
+            record = self._derived_tf.get(static)
+            if batch is not None and record is not None:
+                record(batch.payloads[0], self.get_clock().now().nanoseconds)
         gc.collect()
         gc.freeze()  # long-lived objects out of the collector's full passes (shorter pauses)
         status = EXIT_OK

@@ -21,6 +21,8 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
+from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.stages.frames import FramesStage
 from strapdown_ros.stages.measurement import (
     MeasuredImuStream,
     format_stamp,
@@ -66,6 +68,12 @@ class ImuModelNode(BatchedInputNode):
             self.add_output(self.output_topic, message_class(cdr.IMU), self.qos)
         except Exception as exc:  # invalid topic name
             raise ParameterError("output_topic", str(exc)) from exc
+        # Δv / Δq beside the measured IMU (recording.increments)
+        names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
+        self.frames = FramesStage(scenario.with_recording(topics=names), variation_tf=False)
+        self.derived = derived_outputs(self, self.frames, [self.output_topic])
+        for topic, msgtype in self.derived.items():
+            self.add_output(topic, message_class(msgtype), self.qos)
         self._subscription = None
         self._started = False
         spec = self.stream.spec
@@ -91,7 +99,11 @@ class ImuModelNode(BatchedInputNode):
     def _process(self, items: list[Any]) -> None:
         self._started = True
         out = self.stream.on_payloads([payload for _, payload in items])
-        self._publish((self.output_topic, 0, data) for data in out)
+        published = [(self.output_topic, 0, data) for data in out]
+        if self.derived and published:
+            derived = self.frames.derive_items(published)
+            published += [item for item in derived if item[0] in self.derived]
+        self._publish(published)
 
     @property
     def started(self) -> bool:

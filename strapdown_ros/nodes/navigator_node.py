@@ -29,6 +29,8 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
+from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.stages.frames import FramedSolver, FramesStage
 from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
 
 NODE_NAME = "navigator_node"
@@ -123,6 +125,13 @@ class NavigatorNode(BatchedInputNode):
                 self.add_output(topic, message_class(msgtype), self.qos)
             except Exception as exc:
                 raise ParameterError(f"{key}_topic", str(exc)) from exc
+        if scenario is not None:  # map -> navigator and the map-frame odometry
+            names = dict(scenario.recording.topics, navigator_odom=out_topics["odom"])
+            frames = FramesStage(scenario.with_recording(topics=names), variation_tf=False)
+            derived = derived_outputs(self, frames, [out_topics["odom"]])
+            for topic, msgtype in derived.items():
+                self.add_output(topic, message_class(msgtype), self.qos)
+            self.solver = FramedSolver(self.solver, frames, derived)
         self._subs: list = []
         log.info(
             f"{spec.algorithm} navigator, mode {spec.mode}, N = "

@@ -26,6 +26,7 @@ from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
 from strapdown_ros.bag.batches import Batch, merge_order
+from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.playback import pacing_stats
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.nodes._common import (
@@ -45,7 +46,9 @@ from strapdown_ros.nodes._common import (
     run_node,
     wait_for_subscriptions,
 )
+from strapdown_ros.nodes._frames import derived_outputs, static_qos
 from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
+from strapdown_ros.stages.frames import FramesStage
 from strapdown_ros.stages.reference import build_trajectory, output_cycles, reference_batch_chunks
 
 NODE_NAME = "trajectory_node"
@@ -173,6 +176,13 @@ class TrajectoryNode(Node):
                 )
 
         self._msgtypes = self._topic_types()
+        # TF (/tf_static, map -> base_link) and map-frame odometry of the reference
+        self.frames = FramesStage(self.scenario, cycles=self.cycles, variation_tf=False)
+        self._derived = derived_outputs(self, self.frames, list(self._msgtypes), static=True)
+        self._static_topic = self._derived.pop(self.frames.tf_static_topic, None) and (
+            self.frames.tf_static_topic
+        )
+        self._msgtypes.update(self._derived)
         self._publishers_by_topic = {}
         self.counts: dict[str, int] = {}
         self.errors = array.array("d")  # publish time - due time of each paced message (s)
@@ -184,6 +194,11 @@ class TrajectoryNode(Node):
             except Exception as exc:  # invalid topic name
                 raise ParameterError(_parameter_of(topic, topics), str(exc)) from exc
             self.counts[topic] = 0
+        if self._static_topic:  # latched, like tf2_ros' static broadcaster
+            self._publishers_by_topic[self._static_topic] = self.create_publisher(
+                message_class(TF_MESSAGE), self._static_topic, static_qos(self.qos)
+            )
+            self.counts[self._static_topic] = 0
         self._wait_topics = all_topics if self.wait_for_all_topics else [self.imu_topic]
         self.gate: FlowGate | None = None
         if self.flow_nodes:
@@ -220,10 +235,15 @@ class TrajectoryNode(Node):
             executor.spin_once(timeout_sec=timeout_s)
             last_spin[0] = time.monotonic()
 
-        pieces = _Pieces(reference_batch_chunks(self.scenario, self.trajectory))
+        pieces = _Pieces(self._with_frames(reference_batch_chunks(self.scenario, self.trajectory)))
         try:
             if not self._wait_for_subscribers(spin):
                 return EXIT_FAILURE
+            if self._static_topic:
+                static = self.frames.static_batch()
+                assert static is not None
+                self._publishers_by_topic[self._static_topic].publish(static.payloads[0])
+                self.counts[self._static_topic] += 1
             pacer: Pacer | None = None
             gate = self.gate
             # With flow control the pace is an upper bound, not a schedule: no pacing errors.
@@ -268,6 +288,12 @@ class TrajectoryNode(Node):
             return EXIT_OK
         finally:
             pieces.cancel()
+
+    def _with_frames(self, pieces):
+        """The reference pieces with their derived batches (TF, map odometry) appended."""
+        for piece, batches in pieces:
+            derived = [b for b in self.frames.feed_batches(batches) if b.topic in self._derived]
+            yield piece, batches + derived
 
     def _wait_for_subscribers(self, spin: Callable[[float], None]) -> bool:
         wanted = self.wait_for_subscribers

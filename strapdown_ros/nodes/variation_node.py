@@ -28,6 +28,8 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
+from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.stages.frames import FramedSolver, FramesStage
 from strapdown_ros.stages.reference import build_trajectory, output_cycles
 from strapdown_ros.stages.variation import IMU, ODOM, VariationStage
 
@@ -95,6 +97,14 @@ class VariationNode(BatchedInputNode):
                 self.add_output(topic, message_class(msgtype), self.qos)
             except Exception as exc:  # invalid topic name
                 raise ParameterError(names[topic], str(exc)) from exc
+        # base_link -> variation_imu (variation truth relative to the reference input) and the
+        # map-frame odometry of the outputs
+        frames = FramesStage(self.scenario, offsets=self.solver.offsets, cycles=cycles)
+        outputs = [topics[k] for k in OUTPUT_PARAMETERS.values()]
+        derived = derived_outputs(self, frames, outputs)
+        for topic, msgtype in derived.items():
+            self.add_output(topic, message_class(msgtype), self.qos)
+        self.solver = FramedSolver(self.solver, frames, derived, reference_input=ODOM)
         self._input_subscriptions: list = []
         m_var = cycles - 1 - (cycles - 1) % 2
         log.info(

@@ -52,6 +52,8 @@ from strapdown_ros.core.rotations import (
     quat_from_dcm,
 )
 from strapdown_ros.messages import (
+    SERVICE_UNKNOWN,
+    STATUS_NO_FIX,
     EarthState,
     ImuFields,
     NavSatFixFields,
@@ -239,7 +241,11 @@ def _output_fields(
         odometry_fields_from_ecef(
             stamps, r_e, v_e, c_n_e @ c_b_n, omega_eb_b, frame_id, earth_frame
         ),  # fmt: skip
-        navsatfix_fields_from_geodetic(stamps, sol.lat, sol.lon, sol.alt, frame_id),
+        # an inertial-only position: no GNSS fix claimed (docs/interface.md §4)
+        navsatfix_fields_from_geodetic(
+            stamps, sol.lat, sol.lon, sol.alt, frame_id,
+            status=STATUS_NO_FIX, service=SERVICE_UNKNOWN,
+        ),  # fmt: skip
     )
     if truth is not None:
         dr = position_error_ned(r_e, truth.r_e, truth.lat, truth.lon)
