@@ -89,3 +89,24 @@ def bitwise_equal(a, b) -> bool:
         if x.dtype != y.dtype or x.shape != y.shape or x.tobytes() != y.tobytes():
             return False
     return True
+
+
+def scenario_without_tf(path: Path) -> Path:
+    """A copy of scenario ``path`` with ``tf: {enabled: false, map_odometry: false}``.
+
+    The node tests compare a node's own streams with ``generate``'s; TF and the map-frame
+    odometry (published beside them by every node) are tested by test_tf.py (against truth) and
+    test_pipeline.py (``run`` equals ``generate``). Same file name, so the scenario name stays.
+    """
+    import os
+    import tempfile
+
+    import yaml
+
+    doc = yaml.safe_load(path.read_text())
+    doc.setdefault("name", path.stem)
+    doc["tf"] = {"enabled": False, "map_odometry": False}
+    out = Path(tempfile.gettempdir()) / f"strapdown_no_tf_{os.getpid()}" / path.name
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return out

@@ -73,6 +73,11 @@ def random_fields(rng, msgtype, frame="abc", child="child"):
         )
     if msgtype == cdr.CLOCK:
         return msg.ClockFields(t)
+    if msgtype == cdr.QUATERNION_STAMPED:
+        return msg.QuaternionStampedFields(t, frame, g(size=(n, 4)))
+    if msgtype == cdr.TF_MESSAGE:  # three transforms: frame, child, and a fixed "map" pair
+        frames, children = (frame, "map", child), (child, frame + "_b", "map")
+        return msg.TFMessageFields(t, frames, children, g(size=(n, 3, 3)), g(size=(n, 3, 4)))
     if msgtype == cdr.TWIST_WITH_COVARIANCE_STAMPED:  # aiding (issue 16)
         return msg.TwistWithCovarianceStampedFields(
             t, frame, g(size=(n, 3)), g(size=(n, 3)), g(size=(n, 36))
@@ -91,6 +96,22 @@ def rosbags_message(f, i):
     stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
     if isinstance(f, msg.ClockFields):
         return T[cdr.CLOCK](clock=stamp)
+    if isinstance(f, msg.TFMessageFields):
+        return T[cdr.TF_MESSAGE](
+            [
+                T["geometry_msgs/msg/TransformStamped"](
+                    header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=parent),
+                    child_frame_id=child,
+                    transform=T["geometry_msgs/msg/Transform"](
+                        translation=T["geometry_msgs/msg/Vector3"](*f.translation[i, k]),
+                        rotation=T["geometry_msgs/msg/Quaternion"](*f.rotation[i, k]),
+                    ),
+                )
+                for k, (parent, child) in enumerate(
+                    zip(f.frame_ids, f.child_frame_ids, strict=True)
+                )
+            ]
+        )
     header = T["std_msgs/msg/Header"](stamp=stamp, frame_id=f.frame_id)
     vec = T["geometry_msgs/msg/Vector3"]
     quat = T["geometry_msgs/msg/Quaternion"]
@@ -154,6 +175,8 @@ def rosbags_message(f, i):
             magnetic_field=vec(*f.magnetic_field[i]),
             magnetic_field_covariance=f.magnetic_field_covariance[i],
         )
+    if isinstance(f, msg.QuaternionStampedFields):
+        return T[cdr.QUATERNION_STAMPED](header=header, quaternion=quat(*f.quaternion[i]))
     return T[cdr.VECTOR3_STAMPED](header=header, vector=vec(*f.vector[i]))
 
 

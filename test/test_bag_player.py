@@ -36,7 +36,11 @@ from strapdown_ros.bag.writer import BagWriter  # noqa: E402
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
-REFERENCE = ["variation=null", "navigator=null", "imu_errors=null"]
+# the reference stream alone (no TF, no map-frame odometry: docs/interface.md)
+REFERENCE = [
+    "variation=null", "navigator=null", "imu_errors=null", "aiding=null", "tf.enabled=false",
+    "tf.map_odometry=false",
+]  # fmt: skip
 TYPES = {
     "/reference/imu": "sensor_msgs/msg/Imu",
     "/reference/odom": "nav_msgs/msg/Odometry",

@@ -22,14 +22,14 @@ import yaml
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, executable  # noqa: E402
+from node_testing import Proc, executable, scenario_without_tf  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 
 from strapdown_ros.bag.reader import read_bag  # noqa: E402
 from strapdown_ros.bag.writer import DEFAULT_QOS  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 #: The reference stream with /clock: what trajectory_node publishes (time_source sim).
 OVERRIDES = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null"]
 TOPICS = ["/clock", "/reference/odom", "/reference/fix", "/reference/imu"]

@@ -422,6 +422,11 @@ def test_repaired_bag_decodes_with_mcap_ros2(recorded, tmp_path):
             ours = TS.deserialize_cdr(message.data, schema.name)
             if channel.topic == "/clock":
                 got, want = decoded.clock, ours.clock
+            elif schema.name == "tf2_msgs/msg/TFMessage":  # stamped by its first transform
+                got, want = decoded.transforms[0].header.stamp, ours.transforms[0].header.stamp
+                assert [t.child_frame_id for t in decoded.transforms] == [
+                    t.child_frame_id for t in ours.transforms
+                ]
             else:
                 got, want = decoded.header.stamp, ours.header.stamp
                 assert decoded.header.frame_id == ours.header.frame_id

@@ -17,13 +17,22 @@ from pathlib import Path
 
 import pytest
 
+from strapdown_ros.config import DEFAULT_TOPICS
 from strapdown_ros.config.aiding import AIDING_TOPICS
+from strapdown_ros.stages.frames import ODOM_KEYS
 
 REPO = Path(__file__).resolve().parent.parent
 TOOL = REPO / "tools" / "compare_generate.py"
 BASE = "7249607"
 DURATION_CAP_S = "30"
 SCENARIOS = sorted((REPO / "config" / "scenarios").glob("*.yaml"))
+#: Topics added since the base: the aiding sensors', TF and the map-frame odometry
+NEW_TOPICS = [
+    *AIDING_TOPICS.values(),
+    "/tf",
+    "/tf_static",
+    *(DEFAULT_TOPICS[k] + "_map" for k in ODOM_KEYS),
+]
 
 
 def _compare_generate():
@@ -64,7 +73,7 @@ def test_generate_is_bit_identical_to_the_base(scenario: Path) -> None:
         pytest.skip(why)
     proc = subprocess.run(
         [sys.executable, str(TOOL), "--base", BASE, "--duration-cap", DURATION_CAP_S,
-         "--allow-new-topics", ",".join(AIDING_TOPICS.values()), str(scenario)],
+         "--allow-new-topics", ",".join(NEW_TOPICS), str(scenario)],
         cwd=REPO, capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     out = proc.stdout + proc.stderr

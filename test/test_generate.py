@@ -175,6 +175,14 @@ def test_default_scenario_reintegration_drift_below_1e4_m(tmp_path):
         "/gnss/vel": 3001,
         "/baro/pressure": 15_001,
         "/mag": 30_001,
+        # TF and map-frame odometry (docs/interface.md): map -> base_link per reference truth,
+        # base_link -> variation_imu per variation truth, map -> navigator per solution
+        "/tf_static": 1,
+        "/tf": 120_001 + 119_999 + 12_000,
+        "/reference/odom_map": 120_001,
+        "/variation/odom_map": 119_999,
+        "/variation/reference/odom_map": 119_999,
+        "/navigator/odom_map": 12_000,
     }
     assert all(r.within_spec() for r in summary.residuals.values())
     # Issue 5 acceptance: the high-accuracy navigator on ideal data at its own fast rate stays

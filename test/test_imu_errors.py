@@ -638,4 +638,8 @@ def test_run_expects_the_measured_stream_under_its_topic_with_its_input_count():
         "/reference/odom": 51,
         "/reference/fix": 51,
         "/ref/measured": 50,
+        # TF and map-frame odometry of the reference (docs/interface.md)
+        "/tf_static": 1,
+        "/tf": 51,
+        "/reference/odom_map": 51,
     }

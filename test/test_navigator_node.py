@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from node_testing import scenario_without_tf
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
@@ -32,7 +33,7 @@ from strapdown_ros.messages import stream_from_messages
 from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 HELPERS = Path(__file__).resolve().parent / "ros_helpers"
 DURATION_S = 3.0
 NAV_TOPICS = {

@@ -53,7 +53,9 @@ def _generate(out: Path, *overrides: str) -> Path:
 def _rewrite(src: Path, dst: Path, keep, extra=()) -> Path:  # noqa: ANN001
     """Copy the topics of ``src`` that ``keep(topic)`` accepts, plus ``extra`` batches."""
     contents = read_bag(src)
-    batches = [batch(t, d.fields) for t, d in contents.topics.items() if keep(t)]
+    batches = [  # /tf (several frame pairs on one topic) is not re-batched
+        batch(t, d.fields) for t, d in contents.topics.items() if keep(t) and d.fields is not None
+    ]
     with BagWriter(dst) as w:
         w.write_batches(batches + list(extra))
     return dst

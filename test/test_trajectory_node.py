@@ -26,13 +26,13 @@ import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, bitwise_equal, executable, padded  # noqa: E402
+from node_testing import Proc, bitwise_equal, executable, padded, scenario_without_tf  # noqa: E402
 
 from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.reader import read_bag  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
 DURATION_S = 3.0
 TOPICS = {

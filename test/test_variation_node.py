@@ -33,7 +33,7 @@ import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, bitwise_equal, executable, padded  # noqa: E402
+from node_testing import Proc, bitwise_equal, executable, padded, scenario_without_tf  # noqa: E402
 
 from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.batches import Batch, merge_order, stream_batches  # noqa: E402
@@ -51,7 +51,7 @@ from strapdown_ros.stages.variation import (  # noqa: E402
 )
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 HELPERS = Path(__file__).resolve().parent / "ros_helpers"
 RECORDER = HELPERS / "raw_recorder.py"
 REPLAY = HELPERS / "reference_replay.py"
