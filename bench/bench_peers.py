@@ -8,7 +8,8 @@ integrates them with a single-rate Savage-style NED integrator. In one process:
    lat/lon/alt, roll/pitch/heading, NED velocity) and its increment readings.
 2. **our generation** from pyins' truth: the truth DataFrame → ``samples_from_arrays`` → a
    ``samples`` trajectory (Giribet B-spline fit, options from an in-memory scenario) →
-   ``generate_reference`` (Method 2 regeneration; SPEC §3 exact). Timed from the DataFrame.
+   ``generate_reference`` (Method 2 regeneration; docs/interface.md §3 exact). Timed from the
+   DataFrame.
 3. **navigation**, each tool with its own navigator on its own data: pyins
    ``compute_increments_from_imu`` + ``Integrator.integrate``; ours ``navigate_multirate``
    (``mode="exact"``, N = T_nav/T_gyr, P = T_nav/T_int). The first call in this process includes
@@ -27,14 +28,16 @@ integrates them with a single-rate Savage-style NED integrator. In one process:
      (``θ = Δα``, ``Δv_start = G_V(Δα) Δv``), gravity-matched.
 
    *Gravity-matched*: the tools use different gravity models (pyins: Somigliana normal
-   gravity along the ellipsoid normal with a ``1 - 2h/a`` height factor; ours: the SPEC §1 J2
+   gravity along the ellipsoid normal with a ``1 - 2h/a`` height factor; ours: the docs/interface.md
+   §1 J2
    gravitation plus the centrifugal term), so the increments are moved to the navigator's
    model, ``Δv' = Δv ± ∫ C_N^B (g_pyins − g_ours)^N dt`` (trapezoid at the truth samples; the
    term is ~1e-7 m/s per step and the trapezoid's error ~1e-15 m/s).
 
 Closure errors are taken at our navigator's last output (``t = (M // N) N T``) in every row:
 horizontal and down position error (NED of the true position, from ECEF differences), the
-attitude error angle (norm of Young's error angles, SPEC §4) and the velocity error norm.
+attitude error angle (norm of Young's error angles, docs/interface.md §4) and the velocity error
+norm.
 
 Usage: python bench/bench_peers.py [--duration-s 3600] [--n 10] [--p 10] [--repeats 3]
        [--every 1] [--coarse 10]

@@ -16,11 +16,12 @@ Two IMU data sets:
 
 * ``integrated`` (the rerun proper): increments as an integrating IMU reports them, each
   ``Δφ_b``, ``Δβ_b`` the sum of the two increments of a Method 2 pair of a stream generated at
-  ``T_gyr/2`` (SPEC §2's oversampled output), so that Method 2's odd/even specific-force term
+  ``T_gyr/2`` (docs/interface.md §2's oversampled output), so that Method 2's odd/even
+  specific-force term
   (Savage 2020 eqs. (49)-(50)) cancels inside every sample, as in the paper's data integrated
   from a continuous-time simulation. Truth: the generation truth at the output instants.
 * ``exact``: the stream at ``T_gyr`` itself, what ``strapdown-sim generate`` writes as
-  ``/variation/imu`` (exact to SPEC §3 at its own rate).
+  ``/variation/imu`` (exact to docs/interface.md §3 at its own rate).
 
 Main settings (closest to the paper): Table 1's first-order radii (``table1_radii=True``, also
 for Table 2), the quaternion normalized after every fast step (the navigator's default), no
@@ -148,7 +149,8 @@ class Streams:
 def summed(stream: Stream, k: int) -> Stream:
     """Output stream at ``k T``: increments summed over k cycles, truth every k-th sample.
 
-    What an IMU integrating over ``k T`` reports (SPEC §2, ``oversample``); trailing cycles that
+    What an IMU integrating over ``k T`` reports (docs/interface.md §2, ``oversample``); trailing
+    cycles that
     do not fill an output cycle are dropped.
     """
     if k == 1:
@@ -196,7 +198,8 @@ def shifted_sample(dv: np.ndarray) -> np.ndarray:
 
     :class:`SimultaneousNavigator` samples ``dv[j N]``, the first increment of cycle j (over
     ``(t_k, t_k + T_gyr]``); with this array it samples the increment that *ends* at ``t_k``
-    (Table 2's ``Δβ_b(n T_gyr)`` at ``k T_nav = n T_gyr``, read with SPEC §2 stamps). The
+    (Table 2's ``Δβ_b(n T_gyr)`` at ``k T_nav = n T_gyr``, read with docs/interface.md §2 stamps).
+    The
     simultaneous scheme reads ``dv`` nowhere else (the thrust velocity of the shared
     fast-cycle routine is discarded), which ``test/test_waldmann_table3.py`` checks.
     """
@@ -599,7 +602,7 @@ def main() -> None:
     print(f"A. integrated IMU data (each increment the sum of a Method 2 pair at T_gyr/{SUM}):")
     print(format_main(study, "integrated"))
     print()
-    print("B. exact streams at T_gyr (SPEC §3; strapdown-sim generate's /variation/imu):")
+    print("B. exact streams at T_gyr (interface.md §3; strapdown-sim generate's /variation/imu):")
     print(format_main(study, "exact"))
     print()
     print(format_ratios(study))

@@ -40,7 +40,7 @@ def generate_launch_description():
         DeclareLaunchArgument(
             "scenario",
             default_value=PathJoinSubstitution([share, "config", "scenarios", "default.yaml"]),
-            description="scenario YAML file (SPEC §5)",
+            description="scenario YAML file (docs/interface.md §5)",
         ),
         DeclareLaunchArgument("out", default_value="strapdown_run", description="bag directory"),
         DeclareLaunchArgument(

@@ -1,10 +1,10 @@
-"""Command line entry point ``strapdown-sim`` (SPEC §6).
+"""Command line entry point ``strapdown-sim`` (docs/interface.md §6).
 
 Subcommands:
 
 * ``generate SCENARIO --out DIR`` — every stream of the scenario, offline, into a rosbag2 dir;
 * ``validate SCENARIO`` — check a scenario file (and its overrides) without computing anything;
-* ``check DIR`` — re-verify the SPEC §3 exactness rule on a bag read back from disk;
+* ``check DIR`` — re-verify the docs/interface.md §3 exactness rule on a bag read back from disk;
 * ``run SCENARIO --out DIR`` — the live pipeline (nodes as processes) recorded into a bag;
 * ``replay DIR --into navigator --out OUT`` — a bag's IMU/truth into a live navigator_node;
 * ``bag repair DIR`` / ``bag info DIR`` — repair an interrupted recording; summarize a bag;
@@ -24,7 +24,7 @@ from typing import Any
 
 
 def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario YAML file (SPEC §5, docs/scenarios.md)")
+    parser.add_argument("scenario", help="scenario YAML file (interface.md §5, docs/scenarios.md)")
     parser.add_argument(
         "--set",
         dest="overrides",
@@ -64,7 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
     val = sub.add_parser("validate", help="validate a scenario file without computing anything")
     _add_scenario_args(val)
 
-    chk = sub.add_parser("check", help="verify the SPEC §3 exactness rule on a bag from disk")
+    chk = sub.add_parser(
+        "check", help="verify the docs/interface.md §3 exactness rule on a bag from disk"
+    )
     chk.add_argument("bag", help="bag directory written by generate or run")
     chk.add_argument("--gravity-model", default="j2", help="gravitation model of the streams")
 
@@ -123,7 +125,9 @@ def build_parser() -> argparse.ArgumentParser:
         "(e.g. Method 1 vs Method 2; repeatable)",
     )
     rep.add_argument(
-        "--no-exactness", action="store_true", help="skip the SPEC §3 re-check of the streams"
+        "--no-exactness",
+        action="store_true",
+        help="skip the docs/interface.md §3 re-check of the streams",
     )
 
     bag = sub.add_parser("bag", help="bag utilities: repair an interrupted recording, info")
@@ -248,7 +252,7 @@ def _check(args: argparse.Namespace) -> int:
         print(
             f"{topic} + {odom_topic}: {stream.cycles} cycles, max residual attitude "
             f"{res.max_attitude:.2e} rad, velocity {res.max_velocity:.2e} m/s, position "
-            f"{res.max_position:.2e} m: {'ok' if ok else 'DEFECT (SPEC §3)'}"
+            f"{res.max_position:.2e} m: {'ok' if ok else 'DEFECT (docs/interface.md §3)'}"
         )
     if not checked:
         print(f"{args.bag}: no Imu/Odometry topic pair to check", file=sys.stderr)

@@ -2,14 +2,15 @@
 
 Everything here is pure numpy (no rclpy, no rosbags). A message *type* is represented by a field
 container holding one array per field for N messages (a struct of arrays); the bulk CDR codec in
-:mod:`strapdown_ros.bag.cdr` turns those into payloads and back. The frame conversions of SPEC §1
+:mod:`strapdown_ros.bag.cdr` turns those into payloads and back. The frame conversions of
+docs/interface.md §1
 happen here and only here, exactly (sign flips and 90° rotations):
 
 * body: ``v^FLU = diag(1, -1, -1) v^FRD`` (:func:`~strapdown_ros.core.rotations.frd_to_flu`);
 * local level: ``C_FLU^ENU = C_NED_TO_ENU C_FRD^NED C_FRD_TO_FLU``;
 * inertial E0 to ECEF at ``t = t_m - t0`` (:func:`~strapdown_ros.core.earth.e0_state_to_ecef`).
 
-Message semantics (SPEC §2, §4; see ``docs/messages.md``):
+Message semantics (docs/interface.md §2, §4; see ``docs/messages.md``):
 
 ``sensor_msgs/Imu`` (m = 1..M)
     ``header.stamp = t_m``; ``angular_velocity = FLU(Δα_m) / T``;
@@ -110,7 +111,7 @@ __all__ = [
 
 #: ROS frame id of ECEF (REP-105), ``header.frame_id`` of every Odometry.
 EARTH_FRAME = "earth"
-#: Default body frame id of the reference IMU (SPEC §4).
+#: Default body frame id of the reference IMU (docs/interface.md §4).
 DEFAULT_BODY_FRAME = "reference_imu"
 
 #: REP-145 "not provided": covariance element 0 set to -1 (the rest zero).
@@ -406,7 +407,7 @@ def imu_fields_from_increments(
     angular_velocity_covariance: object = None,
     linear_acceleration_covariance: object = None,
 ) -> ImuFields:
-    """Imu fields of increments over cycles ending at ``stamps_ns`` (SPEC §2).
+    """Imu fields of increments over cycles ending at ``stamps_ns`` (docs/interface.md §2).
 
     Parameters
     ----------
@@ -495,7 +496,7 @@ def imu_fields(
     angular_velocity_covariance: object = None,
     linear_acceleration_covariance: object = None,
 ) -> ImuFields:
-    """Imu fields of a stream, m = 1..M (SPEC §2, §4).
+    """Imu fields of a stream, m = 1..M (docs/interface.md §2, §4).
 
     ``orientation=True`` carries the true attitude (FLU relative to ENU at ``t_m``), as on ideal
     streams; ``False`` marks it not provided (measured data). Covariance specs as in
@@ -593,7 +594,7 @@ def odometry_fields(
     pose_covariance: object = None,
     twist_covariance: object = None,
 ) -> OdometryFields:
-    """Odometry (truth) fields of a stream, m = 0..M (SPEC §4).
+    """Odometry (truth) fields of a stream, m = 0..M (docs/interface.md §4).
 
     ``twist.angular`` is ``FLU(Δα_m / T - C_E^B ω_ie^E)`` with the cycle ending at ``t_m``
     (cycle 1 for m = 0; for a stream without cycles the body is taken at rest on the Earth).
@@ -751,7 +752,7 @@ def clock_fields(stamps_ns: ArrayLike) -> ClockFields:
 def vector3_stamped_fields(
     stamps_ns: ArrayLike, vector: ArrayLike, frame_id: str
 ) -> Vector3StampedFields:
-    """``geometry_msgs/Vector3Stamped`` fields (e.g. navigator errors, NED; SPEC §4)."""
+    """``geometry_msgs/Vector3Stamped`` fields (e.g. navigator errors, NED; interface.md §4)."""
     t = _stamps(stamps_ns)
     return Vector3StampedFields(
         stamps_ns=t, frame_id=frame_id, vector=_rows(vector, t.shape[0], 3, "vector")
@@ -794,7 +795,8 @@ def _uniform_period(stamps_ns: I64, name: str) -> int:
 def imu_increments(imu: ImuFields, period_ns: int | None = None) -> ImuIncrements:
     """Δα, Δv (FRD) of Imu messages: ``FRD(angular_velocity) T``, ``FRD(linear_acceleration) T``.
 
-    T is ``period_ns`` or the (uniform) spacing of the stamps (SPEC §2). ``x / T * T`` equals
+    T is ``period_ns`` or the (uniform) spacing of the stamps (docs/interface.md §2). ``x / T * T``
+    equals
     ``x`` to 1 ulp (not always bit for bit).
     """
     t = _stamps(imu.stamps_ns)
@@ -841,7 +843,8 @@ def stream_from_messages(
     """Rebuild a :class:`Stream` (E0 truth, FRD increments) from its Imu and Odometry messages.
 
     The first Odometry message is cycle 0 (``t0``); Imu message m must be stamped like Odometry
-    message m (m = 1..M). Used to check the exactness rule (SPEC §3) on a written bag; the E → E0
+    message m (m = 1..M). Used to check the exactness rule (docs/interface.md §3) on a written bag;
+    the E → E0
     and quaternion round trips cost ~1e-9 m and ~1e-16 rad, far below the rule's tolerances.
     ``e0_epoch_ns``: the instant E0 coincides with ECEF (default: the first Odometry stamp);
     a window of a longer stream passes the stream's start so E0 stays the same frame.

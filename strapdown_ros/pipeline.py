@@ -1,4 +1,4 @@
-"""``strapdown-sim run``: the live pipeline as separate ROS 2 processes (SPEC §6, issue 6).
+"""``strapdown-sim run``: the live pipeline as separate ROS 2 processes (interface.md §6, issue 6).
 
 Starts ``bag_recorder``, ``navigator_node``, ``imu_model_node``, ``variation_node`` and
 ``trajectory_node`` (those the scenario needs) as child processes in a private ROS domain

@@ -1,4 +1,4 @@
-"""The topics a scenario produces (SPEC §4), with their message types.
+"""The topics a scenario produces (docs/interface.md §4), with their message types.
 
 :func:`produced_topics` is what the recorder records by default and what ``strapdown-sim
 generate`` writes for the same scenario: the reference Imu/Odometry/NavSatFix (and ``/clock``
@@ -21,7 +21,7 @@ NAVSATFIX = "sensor_msgs/msg/NavSatFix"
 CLOCK = "rosgraph_msgs/msg/Clock"
 VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
 
-#: Message type of every ``recording.topics`` key (SPEC §4).
+#: Message type of every ``recording.topics`` key (docs/interface.md §4).
 MSGTYPES: dict[str, str] = {
     "clock": CLOCK,
     "reference_odom": ODOMETRY,
@@ -96,5 +96,5 @@ def produced_topics(scenario: Scenario) -> dict[str, str]:
 
 
 def spec_topics() -> dict[str, str]:
-    """Every default topic of SPEC §4 -> its message type (``/clock`` first)."""
+    """Every default topic of docs/interface.md §4 -> its message type (``/clock`` first)."""
     return {DEFAULT_TOPICS[key]: msgtype for key, msgtype in MSGTYPES.items()}

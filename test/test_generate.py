@@ -1,4 +1,4 @@
-"""`strapdown-sim generate` end to end: bags read back from disk obey SPEC §3 for every kind."""
+"""`strapdown-sim generate` end to end: bags read back obey docs/interface.md §3 for every kind."""
 
 from __future__ import annotations
 

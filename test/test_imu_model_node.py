@@ -1,4 +1,4 @@
-"""imu_model_node publishes exactly what the offline model gives (SPEC §4, §6; issue 7).
+"""imu_model_node publishes exactly what the offline model gives (interface.md §4, §6; issue 7).
 
 A bag is generated offline for 2 s of the default scenario (its variation, no navigator). Its
 ideal ``/variation/imu`` is the input; the reference output is computed in this process by
@@ -111,7 +111,7 @@ def test_measured_messages_follow_the_model_and_rep145(bag, scenario, offline):
     measured = cdr.deserialize(cdr.IMU, offline)
     assert np.array_equal(measured.stamps_ns, ideal.stamps_ns)
     assert measured.frame_id == ideal.frame_id == "variation_imu"
-    # Orientation not provided (SPEC §4), REP-145 element 0 = -1.
+    # Orientation not provided (docs/interface.md §4), REP-145 element 0 = -1.
     assert np.all(measured.orientation_covariance[:, 0] == -1)
     assert np.all(measured.orientation_covariance[:, 1:] == 0)
     # Covariances: white noise N²/T + quantization q²/(6T²) on the diagonal, from the preset.

@@ -128,7 +128,7 @@ def test_rejects_bad_shapes():
 def test_simpson_displacement_removes_rounding_noise(rate_hz):
     """Differences of ~6e6 m coordinates carry ~1e-9 m rounding, which eq. (31) turns into
     white specific-force noise of ~1e-9/T² m/s². Simpson's rule on the velocity avoids it while
-    keeping the SPEC §3 residuals (position within a few 1e-9 m)."""
+    keeping the docs/interface.md §3 residuals (position within a few 1e-9 m)."""
     period, n = 1.0 / rate_hz, 4000
     t = np.arange(n + 1) * period
     c, v, r = analytic_truth(t)

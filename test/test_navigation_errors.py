@@ -1,4 +1,4 @@
-"""SPEC §4 navigation error definitions: independent checks on constructed errors."""
+"""docs/interface.md §4 navigation error definitions: independent checks on constructed errors."""
 
 import numpy as np
 import pytest
@@ -58,7 +58,7 @@ def test_constructed_errors_are_recovered(truth):
 
 def test_paper_mode_errors_shrink_with_the_rate(truth):
     """End to end: the b-l split's error at T_nav halves when the IMU rate doubles (Table 1 is
-    first order), measured with the SPEC §4 error definitions."""
+    first order), measured with the docs/interface.md §4 error definitions."""
     fast = generate_reference(
         load_scenario(DEFAULT, [*NO_SECTIONS, "rate_hz=400"], 20.0)
     )

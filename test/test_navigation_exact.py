@@ -2,7 +2,8 @@
 
 The exact mode's fast layer is checked against an independent product of Savage 2020's
 ``G_C``, ``G_V``, ``G_R`` matrices (``core.exact_update.g_matrices``); the whole navigator
-against the truth of exact reference streams (SPEC §3), where its only errors are rounding and
+against the truth of exact reference streams (docs/interface.md §3), where its only errors are
+rounding and
 the gravity quadrature; and the paper mode against its known first-order behaviour.
 """
 

@@ -156,7 +156,7 @@ def test_every_plot_renders_from_a_generated_bag(bags: dict[str, Path]) -> None:
         assert f"![{name}]({name}.png)" in md
     for heading in (
         "## Topics",
-        "## Exactness (SPEC §3)",
+        "## Exactness (docs/interface.md §3)",
         "## Navigation errors of `/navigator`",
         "## Variation comparison",
         "## Allan deviation of `/variation/imu_measured`",

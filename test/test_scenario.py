@@ -1,4 +1,4 @@
-"""Scenario loading, overrides and validation: every bad input names its key (SPEC §5)."""
+"""Scenario loading, overrides and validation: every bad input names its key (interface.md §5)."""
 
 import textwrap
 

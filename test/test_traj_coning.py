@@ -128,7 +128,7 @@ def test_sinusoid_velocity_is_derivative_of_position():
 
 
 def test_regenerated_stream_is_exact():
-    """The CM truth feeds Method 2 (zero offsets) into a stream that meets SPEC §3."""
+    """The CM truth feeds Method 2 (zero offsets) into a stream that meets docs/interface.md §3."""
     traj = build(INITIAL, {"cm_motion": "sinusoids", "duration_s": 4.0})
     period = 0.01
     truth = local_to_e0(traj.local_truth(np.arange(401) * period))

@@ -68,7 +68,7 @@ def test_increments_are_constant_rate_times_period():
 
 @pytest.mark.parametrize("model", ["j2", "spherical"])
 def test_stream_meets_the_exactness_rule(model):
-    """SPEC §3 one-step residuals with gravity of the stream's model at the published R."""
+    """interface.md §3 one-step residuals with gravity of the stream's model at the published R."""
     s = stream(INITIAL, MANEUVER, 200.0, 0, gravity_model=model)
     assert s.gravity_model == model
     res = one_step_residuals(

@@ -1,4 +1,4 @@
-"""trajectory_node publishes exactly what ``strapdown-sim generate`` writes (SPEC §6).
+"""trajectory_node publishes exactly what ``strapdown-sim generate`` writes (docs/interface.md §6).
 
 A bag is generated offline for 3 s of the default scenario (600 cycles at 200 Hz, with
 ``recording.clock=true``). Then ``trajectory_node`` runs as its own process next to a raw

@@ -1,4 +1,4 @@
-"""variation_node publishes exactly what ``strapdown-sim generate`` writes (SPEC §4, §6).
+"""variation_node publishes exactly what ``strapdown-sim generate`` writes (interface.md §4, §6).
 
 A bag is generated offline for 2 s of the default scenario with a variation section (lever arm,
 bending, scan). Then, as separate processes over real DDS in this session's ROS domain:
@@ -333,7 +333,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
                 assert p == padded(want[topic][_stamp_of(p)]), (k, topic, _stamp_of(p))
         if k == 0:
             continue
-        # The restarted run on its own obeys the exactness rule (SPEC §3).
+        # The restarted run on its own obeys the exactness rule (docs/interface.md §3).
         for imu_t, odom_t in (
             ("/variation/imu", "/variation/odom"),
             ("/variation/reference/imu", "/variation/reference/odom"),

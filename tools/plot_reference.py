@@ -1,4 +1,4 @@
-"""Plot a reference bag: ground track, altitude, speed and the SPEC §3 one-step residuals.
+"""Plot a reference bag: ground track, altitude, speed and the interface.md §3 one-step residuals.
 
 Usage: python tools/plot_reference.py BAG_DIR OUT.png
 
@@ -24,7 +24,8 @@ from strapdown_ros.report.data import load_bag  # noqa: E402
 
 
 def main(bag: str, out: str) -> None:
-    # the report's loader: streams (geodetic, NED velocity), IMU topics and SPEC §3 residuals
+    # the report's loader: streams (geodetic, NED velocity), IMU topics and docs/interface.md §3
+    # residuals
     data = load_bag(bag, allan=False)
     ref = data.streams["/reference"]
     t, alt, v_ned = ref.t, ref.alt, ref.v_ned
@@ -58,7 +59,7 @@ def main(bag: str, out: str) -> None:
         ax[1, 1].axhline(tol, color="k", lw=0.5, ls="--")
     ax[1, 1].set(
         xlabel="time [s]",
-        title="one-step residuals, eqs. (2)-(4) (dashed: SPEC §3 limits)",
+        title="one-step residuals, eqs. (2)-(4) (dashed: docs/interface.md §3 limits)",
         ylim=(1e-18, 1e-5),
     )
     ax[1, 1].legend(markerscale=8)

@@ -2,7 +2,7 @@
 
 A :class:`Batch` holds the CDR payloads of one topic with their stamps. The bag writer and the
 ROS nodes consume the same batches in the same :func:`merge_order`, which is how the offline
-bag and the live topics carry identical messages (SPEC §6). No rosbags or rclpy here.
+bag and the live topics carry identical messages (docs/interface.md §6). No rosbags or rclpy here.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ follows. Types whose serialization always ends 4-byte aligned (Imu, Odometry, Cl
 Vector3Stamped, ...) are never walked. It also reads the header stamp of messages that start
 with a ``std_msgs/Header`` or a ``builtin_interfaces/Time``, and of messages that start with a
 sequence of such messages (``tf2_msgs/TFMessage``: its first transform's stamp), for the bag log
-time (SPEC §2).
+time (docs/interface.md §2).
 
 Plain CDR (XCDR1, little or big endian) is supported; other encapsulations are left untouched.
 No rclpy here.

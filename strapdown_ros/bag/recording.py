@@ -2,7 +2,8 @@
 
 :class:`Recording` takes each received payload (``bytes`` from a raw subscription), strips the
 middleware's trailing alignment padding (:class:`~strapdown_ros.bag.payload.PayloadInspector`),
-chooses its log time — the header stamp, as ``strapdown-sim generate`` does (SPEC §2), or the
+chooses its log time — the header stamp, as ``strapdown-sim generate`` does (docs/interface.md §2),
+or the
 receive time — and appends it to an :class:`~strapdown_ros.bag.incremental.IncrementalBagWriter`.
 It counts messages per topic and flushes the bag every ``flush_period_s``. A topic enters the
 bag with its first message (so that a bag holds only topics that carried data, as ``generate``'s

@@ -6,7 +6,8 @@ hidden temporary sibling directory and renamed into place only when everything s
 error (or Ctrl-C) never leaves a half-written bag at the destination.
 
 Batches of payloads (one topic each) are merged by stamp and written in time order; the log
-time of every message is its header stamp (SPEC §2). At equal stamps, messages keep the order of
+time of every message is its header stamp (docs/interface.md §2). At equal stamps, messages keep the
+order of
 the batches as given.
 """
 

@@ -681,7 +681,8 @@ def check_trajectory(scenario: Scenario) -> None:
     * ``initial`` is required for every kind but ``samples`` (the samples define the start).
     * ``segments`` and ``coning``: ``|initial.latitude_deg| <= 89.9``. Their latitude and
       longitude integrate the geodetic rates ``λ' = v_E / ((R_E + h) cos φ)``, singular at the
-      poles; the whole path is held within ±89.9° (SPEC §5), so its start must be too. The
+      poles; the whole path is held within ±89.9° (docs/interface.md §5), so its start must be too.
+      The
       top-level ``initial`` allows ±90° because ``increments`` (integrated in E0) and the
       navigator have no such singularity.
     * ``segments``: ``|pitch| <= 89.9°`` at the start (the Euler-angle model is held within

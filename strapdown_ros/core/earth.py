@@ -1,6 +1,6 @@
 """WGS-84 Earth: geodetic ↔ ECEF, radii of curvature, NED frames, E ↔ E0 state conversions.
 
-Frames (SPEC §1):
+Frames (docs/interface.md §1):
 
 * ``E`` — ECEF of WGS-84 (z along the polar axis, x in the Greenwich meridian).
 * ``E0`` — the inertial frame equal to ``E`` at the trajectory start ``t0``;
@@ -52,9 +52,9 @@ __all__ = [
     "transverse_radius",
 ]
 
-#: WGS-84 semi-major axis (equatorial radius), m (SPEC §1).
+#: WGS-84 semi-major axis (equatorial radius), m (docs/interface.md §1).
 A_WGS84 = 6378137.0
-#: WGS-84 flattening (SPEC §1).
+#: WGS-84 flattening (docs/interface.md §1).
 F_WGS84 = 1.0 / 298.257223563
 #: WGS-84 semi-minor axis (polar radius), m: ``a (1 - f)``.
 B_WGS84 = A_WGS84 * (1.0 - F_WGS84)
@@ -62,11 +62,11 @@ B_WGS84 = A_WGS84 * (1.0 - F_WGS84)
 E2_WGS84 = F_WGS84 * (2.0 - F_WGS84)
 #: WGS-84 second eccentricity squared: ``e² / (1 - e²)``.
 EP2_WGS84 = E2_WGS84 / (1.0 - E2_WGS84)
-#: WGS-84 Earth gravitational constant GM, m³/s² (SPEC §1).
+#: WGS-84 Earth gravitational constant GM, m³/s² (docs/interface.md §1).
 GM_WGS84 = 3.986004418e14
-#: Earth rotation rate ω_ie, rad/s (SPEC §1).
+#: Earth rotation rate ω_ie, rad/s (docs/interface.md §1).
 OMEGA_IE = 7.292115e-5
-#: Second zonal harmonic J2 of the SPEC §1 ``j2`` gravitation model.
+#: Second zonal harmonic J2 of the docs/interface.md §1 ``j2`` gravitation model.
 J2_WGS84 = 1.08262982131e-3
 #: Earth rotation vector ``ω_ie^E = ω_ie^E0`` (rad/s), along the polar axis z.
 OMEGA_IE_VEC = np.array([0.0, 0.0, OMEGA_IE])
@@ -324,7 +324,7 @@ def dcm_ecef_to_ned(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
 
 
 def dcm_ecef_to_e0(t: ArrayLike) -> NDArray[np.float64]:
-    """``C_E^E0(t) = Rz(ω_ie t)``: ECEF at time ``t`` to the inertial E0 frame (SPEC §1).
+    """``C_E^E0(t) = Rz(ω_ie t)``: ECEF at time ``t`` to the inertial E0 frame (interface.md §1).
 
     ``[[cos ω_ie t, -sin ω_ie t, 0], [sin ω_ie t, cos ω_ie t, 0], [0, 0, 1]]``, Savage 2020
     (E-2) with ``m T_m = t``: the Earth has turned by ``ω_ie t`` about z since ``t0``.
@@ -371,7 +371,7 @@ def ecef_state_to_e0(
     v_e: ArrayLike,
     C_b_e: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
-    """Earth-referenced state to the inertial E0 state of SPEC §3.
+    """Earth-referenced state to the inertial E0 state of docs/interface.md §3.
 
     ``R^E0 = C_E^E0 r^E``, ``V^E0 = dR^E0/dt = C_E^E0 (v^E + ω_ie × r^E)``,
     ``C_B^E0 = C_E^E0 C_B^E`` (Savage 2020 (E-1), (E-2) and the inverse of (E-7)).
@@ -410,7 +410,7 @@ def e0_state_to_ecef(
     V_e0: ArrayLike,
     C_b_e0: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
-    """Inertial E0 state of SPEC §3 to the Earth-referenced state.
+    """Inertial E0 state of docs/interface.md §3 to the Earth-referenced state.
 
     Inverse of :func:`ecef_state_to_e0` (exact up to rounding).
 
@@ -450,7 +450,8 @@ def body_rates_relative_to_earth(
 ) -> NDArray[np.float64]:
     """Angular rate of the body relative to the Earth, ``ω_eb^B = ω_ib^B - C_E^B ω_ie^E``.
 
-    Used for the SPEC §4 odometry ``twist.angular`` (converted to FLU at the message layer).
+    Used for the docs/interface.md §4 odometry ``twist.angular`` (converted to FLU at the message
+    layer).
 
     Parameters
     ----------

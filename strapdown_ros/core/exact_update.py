@@ -10,7 +10,8 @@ continuous kinematics of eq. (1) integrate exactly to::
 
 with ``C = C_B^E0`` (body to E0 DCM), ``V = dR^E0/dt`` (inertial velocity, m/s), ``R = R^E0``
 (m), ``Δα`` the integrated body angular rate (rad, body axes) and ``Δv`` the integrated
-specific force (m/s, body axes). These are the SPEC §3 exactness equations: every stream this
+specific force (m/s, body axes). These are the docs/interface.md §3 exactness equations: every
+stream this
 project generates satisfies them, and :func:`one_step_residuals` measures how well.
 
 Everything here is vectorized over leading array axes (cycles), except :func:`integrate`,
@@ -182,7 +183,7 @@ def exact_update_single(
 
 @dataclass(frozen=True)
 class Residuals:
-    """One-step residuals of a stream against Savage 2020 eqs. (2)-(4) (SPEC §3).
+    """One-step residuals of a stream against Savage 2020 eqs. (2)-(4) (docs/interface.md §3).
 
     Attributes
     ----------
@@ -198,7 +199,7 @@ class Residuals:
     velocity: Array
     position: Array
 
-    #: SPEC §3 tolerances: a one-step residual above these is a defect.
+    #: docs/interface.md §3 tolerances: a one-step residual above these is a defect.
     TOL_ATTITUDE = 1e-11
     TOL_VELOCITY = 1e-9
     TOL_POSITION = 1e-7
@@ -219,7 +220,7 @@ class Residuals:
         return float(np.max(self.position, initial=0.0))
 
     def within_spec(self) -> bool:
-        """True when every residual is within the SPEC §3 tolerances."""
+        """True when every residual is within the docs/interface.md §3 tolerances."""
         return (
             self.max_attitude <= self.TOL_ATTITUDE
             and self.max_velocity <= self.TOL_VELOCITY
@@ -236,7 +237,7 @@ def one_step_residuals(
     g: ArrayLike,
     period: float,
 ) -> Residuals:
-    """SPEC §3 one-step residuals of a published stream, all cycles at once.
+    """docs/interface.md §3 one-step residuals of a published stream, all cycles at once.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""The SPEC §3 exactness rule applied to a whole :class:`~strapdown_ros.core.stream.Stream`.
+"""The interface.md §3 exactness rule applied to a whole :class:`~strapdown_ros.core.stream.Stream`.
 
 ``stream_residuals`` evaluates the one-step residuals of Savage 2020 eqs. (2)-(4) with gravity
 ``g_m = g(R_m)`` from the stream's gravitation model at the published positions;
@@ -23,7 +23,8 @@ __all__ = ["Drift", "reintegration_drift", "stream_residuals"]
 def stream_residuals(stream: Stream) -> Residuals:
     """One-step residuals (rad, m/s, m) of a stream against Savage 2020 eqs. (2)-(4) in E0.
 
-    Gravity is the stream's model (SPEC §1) evaluated at the published positions ``R_m``.
+    Gravity is the stream's model (docs/interface.md §1) evaluated at the published positions
+    ``R_m``.
     """
     g = gravitation(stream.r_e0, stream.gravity_model)
     return one_step_residuals(

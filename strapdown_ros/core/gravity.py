@@ -1,9 +1,11 @@
-"""Gravitation and gravity models (SPEC §1) and the Savage 2020 Appendix C expansion.
+"""Gravitation and gravity models (docs/interface.md §1) and the Savage 2020 Appendix C expansion.
 
 Gravitation ``g`` is the mass attraction only; plumb-bob gravity adds the centrifugal term of the
-Earth's rotation, ``g_P = g - ω_ie × (ω_ie × r)`` (SPEC §1), and is what a level accelerometer at
+Earth's rotation, ``g_P = g - ω_ie × (ω_ie × r)`` (docs/interface.md §1), and is what a level
+accelerometer at
 rest on the Earth measures (with the opposite sign). All models are axisymmetric about the polar
-axis z, so the same functions apply to coordinates in E (ECEF) or in E0 (SPEC §1, Savage 2020
+axis z, so the same functions apply to coordinates in E (ECEF) or in E0 (docs/interface.md §1,
+Savage 2020
 Appendix E note). Vectors have shape ``(..., 3)``; functions broadcast over leading axes. Units:
 m, m/s², rad.
 """
@@ -33,7 +35,8 @@ __all__ = [
     "gravity_plumb_bob",
 ]
 
-#: Names accepted by :func:`gravitation` (SPEC §1 ``j2`` is the default of every stream).
+#: Names accepted by :func:`gravitation` (docs/interface.md §1 ``j2`` is the default of every
+#stream).
 GRAVITY_MODELS: tuple[str, ...] = ("j2", "spherical")
 
 
@@ -53,7 +56,7 @@ def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def gravitation_j2(r: ArrayLike) -> NDArray[np.float64]:
-    """J2 gravitation, the SPEC §1 ``j2`` model, exactly as written there.
+    """J2 gravitation, the docs/interface.md §1 ``j2`` model, exactly as written there.
 
     ``g = -GM/r³ [x (1 + k(1 - 5z²/r²)), y (1 + k(1 - 5z²/r²)), z (1 + k(3 - 5z²/r²))]`` with
     ``k = 1.5 J2 (a/r)²``; this is the gradient of the potential
@@ -102,7 +105,7 @@ def gravitation_spherical(r: ArrayLike) -> NDArray[np.float64]:
 
 
 def gravitation(r: ArrayLike, model: str = "j2") -> NDArray[np.float64]:
-    """Gravitation of the named model (SPEC §1 ``gravity_model``).
+    """Gravitation of the named model (docs/interface.md §1 ``gravity_model``).
 
     Parameters
     ----------
@@ -132,7 +135,7 @@ def gravitation(r: ArrayLike, model: str = "j2") -> NDArray[np.float64]:
 
 
 def gravity_plumb_bob(r_e: ArrayLike, model: str = "j2") -> NDArray[np.float64]:
-    """Plumb-bob gravity ``g_P = g(r) - ω_ie × (ω_ie × r)`` in ECEF (SPEC §1).
+    """Plumb-bob gravity ``g_P = g(r) - ω_ie × (ω_ie × r)`` in ECEF (docs/interface.md §1).
 
     ``-ω_ie × (ω_ie × r) = ω_ie² [x, y, 0]`` (centrifugal acceleration of the rotating frame).
 

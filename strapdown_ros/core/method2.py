@@ -14,7 +14,7 @@ produces: it is found by fixed-point iteration over the whole array (contraction
 
 The reference trajectory itself is *regenerated* through the same routine with zero offsets
 (S = 0, ``C_Bvar^Bref = I``): Savage 2020, "Generating variation and reference trajectory
-outputs". That makes every stream obey the SPEC §3 exactness rule by construction.
+outputs". That makes every stream obey the docs/interface.md §3 exactness rule by construction.
 """
 
 from __future__ import annotations
@@ -268,7 +268,8 @@ def method2(
         coordinates (e.g. :func:`pair_displacement`, Simpson's rule on the velocity). The
         difference of rounded positions carries ~1e-9 m of noise, which eq. (31) turns into
         ~1e-9/T² m/s² of white noise on the specific force (1e-3 m/s² at 1 kHz). The published
-        positions stay the constraints, so the SPEC §3 residuals change by at most that 1e-9 m.
+        positions stay the constraints, so the docs/interface.md §3 residuals change by at most that
+        1e-9 m.
     cycle_gravity : callable, optional
         ``g(R, m)`` taking positions and their cycle indices, replacing ``gravity``: for models
         that depend on the cycle, e.g. Savage 2020 Appendix C's expansion about the

@@ -307,7 +307,7 @@ def dcm_from_euler(roll: ArrayLike, pitch: ArrayLike, heading: ArrayLike) -> NDA
     """``C_B^N`` of body FRD relative to local-level NED from roll, pitch, heading (rad).
 
     ``C_B^N = Rz(heading) Ry(pitch) Rx(roll)`` (heading clockwise from north seen from above,
-    pitch nose up, roll right wing down), the SPEC §5 ``attitude_rph`` convention.
+    pitch nose up, roll right wing down), the docs/interface.md §5 ``attitude_rph`` convention.
     """
     return rot_z(heading) @ rot_y(pitch) @ rot_x(roll)
 

@@ -1,8 +1,9 @@
-"""A generated stream: increments and truth on the cycle grid of SPEC §2.
+"""A generated stream: increments and truth on the cycle grid of docs/interface.md §2.
 
 A stream has cycles m = 0..M at ``t_m = t0 + m T`` (T an integer number of nanoseconds).
 Increments exist for m = 1..M and cover ``(t_{m-1}, t_m]``; truth exists for m = 0..M. All
-quantities are in the core's frames: body FRD, inertial E0 (SPEC §1). Conversion to ROS messages
+quantities are in the core's frames: body FRD, inertial E0 (docs/interface.md §1). Conversion to ROS
+messages
 (FLU, ENU, ECEF) happens in :mod:`strapdown_ros.messages`.
 """
 
@@ -37,10 +38,12 @@ class Stream:
     r_e0 : array (M+1, 3)
         Position ``R^E0`` at t_m (m).
     gravity_model : str
-        Gravitation model of the stream (SPEC §1, e.g. ``"j2"``); the exactness rule uses it.
+        Gravitation model of the stream (docs/interface.md §1, e.g. ``"j2"``); the exactness rule
+        uses it.
     e0_epoch_ns : int or None
         Instant (ns since the epoch) at which E0 coincides with ECEF: the start of the whole
-        stream (SPEC §1). A piece of a longer stream keeps the start of the whole; ``None``
+        stream (docs/interface.md §1). A piece of a longer stream keeps the start of the whole;
+        ``None``
         means ``t0_ns``.
     """
 

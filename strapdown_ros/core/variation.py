@@ -1,6 +1,7 @@
 """Variation trajectories from a published reference stream: Savage 2020 Methods 1 and 2.
 
-Given the reference stream (increments and truth in E0, SPEC §3) and the offset history on the
+Given the reference stream (increments and truth in E0, docs/interface.md §3) and the offset history
+on the
 same cycle grid (lever arm ``l^Bref``, displacement ``s^Bvar``, attitude offset
 ``C_Bvar^Bref``), the variation stream is the one whose truth meets
 

@@ -9,7 +9,8 @@ y east, z north — and relates the ideal platform frame Σ_P to the actual fram
          [-Cθ2 Sθ3, -Sθ1 Sθ2 Sθ3 + Cθ1 Cθ3,  Cθ1 Sθ2 Sθ3 + Sθ1 Cθ3],
          [ Sθ2,     -Sθ1 Cθ2,                 Cθ1 Cθ2              ]]
 
-For a navigator, SPEC §4 takes Σ_P as the true local-level frame and Σ_M as the local-level
+For a navigator, docs/interface.md §4 takes Σ_P as the true local-level frame and Σ_M as the
+local-level
 frame implied by the computed attitude: ``H = C_B^N(computed) C_B^N(true)ᵀ`` resolved in the
 (up, east, north) axes. For small errors ``H ≈ I - (θ×)``, so θ equals, to second order, the
 rotation vector of the error rotation that carries the true local-level axes to the computed
@@ -131,7 +132,7 @@ def young_error_angles(c_b_n_computed: ArrayLike, c_b_n_true: ArrayLike) -> Arra
     -------
     array (..., 3)
         θ of eq. (28) for ``H = C_NED_TO_UEN C_B^N(computed) C_B^N(true)ᵀ C_NED_TO_UENᵀ``,
-        i.e. about the (up, east, north) axes of the true local level (SPEC §4
+        i.e. about the (up, east, north) axes of the true local level (docs/interface.md §4
         ``/navigator/error/attitude``).
     """
     comp = np.asarray(c_b_n_computed, dtype=np.float64)

@@ -196,7 +196,7 @@ def load_samples_csv(
 
 
 def odometry_samples(path: str | Path, topic: str = "/reference/odom") -> Samples:
-    """Samples from a bag's ``nav_msgs/Odometry`` topic (SPEC §4 conventions).
+    """Samples from a bag's ``nav_msgs/Odometry`` topic (docs/interface.md §4 conventions).
 
     The messages give ECEF position, body FLU attitude relative to ECEF, and Earth-relative
     velocity and angular rate in body axes; they are converted to FRD and all four are

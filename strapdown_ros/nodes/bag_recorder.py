@@ -1,7 +1,7 @@
 """``bag_recorder``: records topics into a rosbag2 directory, durable up to the last flush.
 
 It subscribes raw (serialized payloads, nothing is deserialized) to a configured topic list —
-by default every topic of SPEC §4 the scenario produces (:func:`strapdown_ros.topics.
+by default every topic of docs/interface.md §4 the scenario produces (:func:`strapdown_ros.topics.
 produced_topics`) — and writes the payloads with :class:`~strapdown_ros.bag.recording.Recording`
 into an mcap (default) or sqlite3 bag: Fast DDS' trailing alignment padding is stripped and the
 log time is the header stamp, so the bag's messages are byte-identical to what

@@ -1,4 +1,4 @@
-"""``imu_model_node``: the scenario's IMU error model, live (SPEC §4, issue 7).
+"""``imu_model_node``: the scenario's IMU error model, live (docs/interface.md §4, issue 7).
 
 A thin rclpy shell around :class:`~strapdown_ros.stages.measurement.MeasuredImuStream`, the
 object ``strapdown-sim generate`` feeds: raw ideal Imu payloads in (default ``/variation/imu``),

@@ -1,4 +1,4 @@
-"""``navigator_node``: the navigation stage, live (SPEC §4, issue 5).
+"""``navigator_node``: the navigation stage, live (docs/interface.md §4, issue 5).
 
 A thin rclpy shell around :class:`~strapdown_ros.stages.navigation.NavigationStage` — the very
 object ``strapdown-sim generate`` feeds, so ``/navigator/*`` are published with the bag's

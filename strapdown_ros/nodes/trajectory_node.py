@@ -1,4 +1,4 @@
-"""``trajectory_node``: publishes a scenario's reference stream live (SPEC §4, §6).
+"""``trajectory_node``: publishes a scenario's reference stream live (docs/interface.md §4, §6).
 
 It publishes exactly the messages ``strapdown-sim generate`` writes for the reference stream,
 in the same order: the very CDR payloads of

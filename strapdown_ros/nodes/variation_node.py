@@ -1,4 +1,4 @@
-"""``variation_node``: the variation and the regenerated reference, live (SPEC §4, §6).
+"""``variation_node``: the variation and the regenerated reference, live (docs/interface.md §4, §6).
 
 A thin rclpy shell over :class:`~strapdown_ros.stages.variation.VariationStage` (the same
 streaming stage ``strapdown-sim generate`` runs): it subscribes raw to the reference Imu and

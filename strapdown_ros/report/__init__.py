@@ -115,7 +115,8 @@ def write_report(
         their variation streams are compared with this bag's in ``method_comparison.png``.
         Variation streams under several prefixes of one bag are compared too.
     exactness : bool
-        Re-check the SPEC §3 rule on every Imu/Odometry pair (cheap: ~0.2 s per 120 000 cycles).
+        Re-check the docs/interface.md §3 rule on every Imu/Odometry pair (cheap: ~0.2 s per 120 000
+        cycles).
 
     Raises
     ------
@@ -164,11 +165,11 @@ def write_report(
 
     # --- exactness
     if data.residuals:
-        sections += ["", "## Exactness (SPEC §3)", ""] + summary.exactness_table(data)
+        sections += ["", "## Exactness (docs/interface.md §3)", ""] + summary.exactness_table(data)
         if any(not isinstance(r, str) for _, r in data.residuals.values()):
             draw("exactness", "exactness.png",
                  "One-step residuals of Savage 2020 eqs. (2)-(4) of every Imu/Odometry pair, "
-                 "with the SPEC §3 limits.", plots.plot_exactness, data)  # fmt: skip
+                 "with the docs/interface.md §3 limits.", plots.plot_exactness, data)  # fmt: skip
     elif exactness:
         result.omitted["exactness"] = "no Imu/Odometry pair (`P/imu` + `P/odom`)"
     else:

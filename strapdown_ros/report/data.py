@@ -1,6 +1,7 @@
 """What the report shows, computed from a bag read back from disk (numpy only, no plotting).
 
-The report knows topics by their role, found from the names and types of SPEC §4 (every name is
+The report knows topics by their role, found from the names and types of docs/interface.md §4 (every
+name is
 a parameter, so roles come from the last name component under a common prefix):
 
 * a **stream** is a prefix ``P`` with ``P/odom`` (nav_msgs/Odometry) and/or ``P/fix``

@@ -279,7 +279,7 @@ def plot_imu(bag: BagData, path: Path) -> Path:
 
 
 def plot_exactness(bag: BagData, path: Path) -> Path:
-    """One-step residuals of Savage 2020 eqs. (2)-(4) (SPEC §3) per stream, with the limits."""
+    """One-step residuals of Savage 2020 eqs. (2)-(4) per stream, with interface §3's limits."""
     items = [(p, r) for p, (_, r) in bag.residuals.items() if isinstance(r, Residuals)]
     fig = _figure(12, 6)
     axes = fig.subplots(1, 3)
@@ -293,7 +293,7 @@ def plot_exactness(bag: BagData, path: Path) -> Path:
             t = bag.imus[prefix].t
             tb, yb = max_decimate(t, np.maximum(getattr(res, name), 1e-20), 300)
             ax.semilogy(tb, yb, lw=0.8, color=_style(i, prefix)["color"], label=prefix)
-        ax.axhline(tol, color="black", ls="--", lw=1.2, label=f"SPEC §3 limit {tol:g}")
+        ax.axhline(tol, color="black", ls="--", lw=1.2, label=f"docs/interface.md §3 limit {tol:g}")
         ax.set(title=f"{label.split(' ')[0]} residual", xlabel=_time_label(bag).split(" (")[0])
         ax.set_ylabel(label)
         ax.grid(alpha=0.3, which="both")

@@ -77,7 +77,7 @@ def exactness_table(bag: BagData) -> list[str]:
         if isinstance(res, str):
             rows.append([f"`{pair}`", "—", "—", "—", "—", res])
             continue
-        ok = "ok" if res.within_spec() else "**DEFECT** (SPEC §3)"
+        ok = "ok" if res.within_spec() else "**DEFECT** (docs/interface.md §3)"
         rows.append([
             f"`{pair}`", str(res.attitude.size), _e(res.max_attitude), _e(res.max_velocity),
             _e(res.max_position), ok,

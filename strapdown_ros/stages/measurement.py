@@ -7,7 +7,8 @@ bag and the live topic carry the same bytes.
 
 * **Topics.** ``imu_errors.input_topic`` (default ``recording.topics.variation_imu``) becomes
   ``imu_errors.output_topic`` (default ``recording.topics.variation_imu_measured``).
-* **Messages** (SPEC §2, §4). Increments ``FRD(angular_velocity) T``, ``FRD(linear_acceleration)
+* **Messages** (docs/interface.md §2, §4). Increments ``FRD(angular_velocity) T``,
+``FRD(linear_acceleration)
   T`` go through the model and out as ``FLU(Δα̃) / T``, ``FLU(Δṽ) / T`` with the input's stamp
   and ``frame_id``; no orientation (``orientation_covariance[0] = -1``); diagonal rate and
   acceleration covariances from
@@ -105,7 +106,7 @@ def measured_imu_fields(ideal: ImuFields, model: ImuErrorModel, period_ns: int) 
     Parameters
     ----------
     ideal : ImuFields
-        Ideal Imu messages of consecutive cycles (SPEC §2), FLU.
+        Ideal Imu messages of consecutive cycles (docs/interface.md §2), FLU.
     model : ImuErrorModel
         The run's model; advanced by ``len(ideal)`` cycles.
     period_ns : int

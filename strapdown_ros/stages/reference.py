@@ -3,7 +3,7 @@
 This is the offline path shared by ``strapdown-sim generate`` and ``trajectory_node`` (which
 publishes exactly these messages). ROS-free: numpy and the core only.
 
-Steps (SPEC §2-§3, Savage 2020):
+Steps (docs/interface.md §2-§3, Savage 2020):
 
 1. Build the trajectory model of ``trajectory.kind`` (validated; errors name the key).
 2. ``increments`` kind: integrate Savage's constant-rate segments directly (exact by
@@ -118,7 +118,8 @@ def output_cycles(scenario: Scenario, trajectory: Trajectory | None) -> int:
 
 
 #: Largest disagreement (m) between a model's position differences and Simpson's rule on its
-#: velocity for which the Simpson displacement is used (20 % of the SPEC §3 position budget).
+#: velocity for which the Simpson displacement is used (20 % of the docs/interface.md §3 position
+#budget).
 DISPLACEMENT_TOLERANCE_M = 2e-8
 
 
@@ -141,7 +142,8 @@ def smooth_displacement(r_e0: np.ndarray, v_e0: np.ndarray, period: float) -> np
 def decimate(stream: Stream, factor: int) -> Stream:
     """Output-rate stream: sums of ``factor`` generation increments, truth at output instants.
 
-    SPEC §2: output increments are sums of generation increments (what a real IMU reports);
+    docs/interface.md §2: output increments are sums of generation increments (what a real IMU
+    reports);
     the truth is the generation truth sampled at the output instants.
     """
     if factor == 1:
@@ -281,7 +283,7 @@ def concatenate_streams(pieces: Iterable[Stream]) -> Stream:
 
 
 def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None) -> Stream:
-    """The reference stream of ``scenario`` at its output rate (SPEC §2-§3), in one piece.
+    """The reference stream of ``scenario`` at its output rate (interface.md §2-§3), in one piece.
 
     Parameters
     ----------

@@ -299,7 +299,7 @@ def exact_fast_kernel(dalpha, dv, start, n, t_gyr, gam, w, s):
 
 @_jit
 def _gravitation(x, y, z, model):
-    """SPEC §1 gravitation (mass attraction) at ``(x, y, z)`` in E or E0, m/s²."""
+    """docs/interface.md §1 gravitation (mass attraction) at ``(x, y, z)`` in E or E0, m/s²."""
     r2 = x * x + y * y + z * z
     m = -GM_WGS84 / (r2 * math.sqrt(r2))
     if model == 0:
@@ -323,7 +323,8 @@ def exact_kernel(r0, v0, c0, lo, dalpha, dv, t_gyr, n, p, model):
 
     * fast (``T_gyr``): :func:`exact_fast_kernel` → ``Γ, W, S`` in the body frame ``B_k``;
     * intermediate (``T_int = T / P``): gravitation ``∫g``, ``∫∫g`` by the trapezoid rule of
-      SPEC §3 on P sub-steps, at positions of the cubic Hermite arc through the start state and
+      docs/interface.md §3 on P sub-steps, at positions of the cubic Hermite arc through the start
+      state and
       a predicted end state (``g(R_k)`` held); in an inertial frame the Coriolis and
       transport-rate terms of (29) do not arise;
     * slow (``T``): ``R' = R + V T + C S + ∫∫g``, ``V' = V + C W + ∫g``, ``C' = C Γ`` with one
@@ -357,7 +358,7 @@ def exact_kernel(r0, v0, c0, lo, dalpha, dv, t_gyr, n, p, model):
         py = ry + (vy * t_nav + csy + g0y * hh)
         pz = rz + (vz * t_nav + csz + g0z * hh)
         qx, qy, qz = vx + cwx + g0x * t_nav, vy + cwy + g0y * t_nav, vz + cwz + g0z * t_nav
-        # Intermediate layer: trapezoid (SPEC §3 form) on P sub-steps.
+        # Intermediate layer: trapezoid (docs/interface.md §3 form) on P sub-steps.
         dvx = dvy = dvz = 0.0
         drx = dry = drz = 0.0
         gpx, gpy, gpz = g0x, g0y, g0z

@@ -1,4 +1,4 @@
-"""Navigation errors against a truth stream, as SPEC §4's ``/navigator/error/*`` topics define.
+"""Navigation errors against truth, as docs/interface.md §4's ``/navigator/error/*`` define.
 
 * position: navigation minus truth in the true local level, NED, m — ``C_E^N(true) (r_nav - r)``
   with both positions in ECEF (exact, not a small-angle latitude/longitude difference);

@@ -243,7 +243,8 @@ class MultirateNavigator:
           Savage 1998's two-speed velocity/position algorithm "compressed into a single
           high-speed format" (Part 2, Sec. VI): the composed ``Γ``, ``W``, ``S`` contain the
           coning (Part 1), sculling (Part 2 eq. (38)) and scrolling (eq. (85)) terms
-          exactly for piecewise-constant rate and specific force — the model of SPEC §3;
+          exactly for piecewise-constant rate and specific force — the model of docs/interface.md
+          §3;
         * intermediate (``T_int``): gravitation integrated by the trapezoid rule on P
           sub-steps in the inertial frame ``I_k`` (ECEF frozen at ``t_k``), where the
           Coriolis and transport-rate terms of (29) vanish identically;
@@ -265,7 +266,7 @@ class MultirateNavigator:
     mode : str
         ``"paper"`` or ``"exact"``.
     gravity_model : str
-        Gravitation model (SPEC §1), the generator's by default.
+        Gravitation model (docs/interface.md §1), the generator's by default.
     normalize : bool
         ``paper`` mode: normalize ``q_b^l`` after each fast step.
     table1_radii : bool
@@ -333,7 +334,7 @@ class MultirateNavigator:
             np.array(st.v_ned, dtype=np.float64), np.array(st.q_b_n, dtype=np.float64),
         )  # fmt: skip
         if self.mode == "exact":
-            # E0 of the navigator: ECEF at the initial instant (SPEC §1); R, V, C_B^E0.
+            # E0 of the navigator: ECEF at the initial instant (docs/interface.md §1); R, V, C_B^E0.
             c_n_e = dcm_ned_to_ecef(st.lat, st.lon)
             r_e = geodetic_to_ecef(st.lat, st.lon, st.alt)
             self._r0 = r_e.astype(np.float64)
@@ -434,7 +435,8 @@ class MultirateNavigator:
         kernel(r, v, c, self._lo, da, dvv, self.t_gyr, self.n, self.p,
                _kernels.GRAVITY_CODES[self.gravity_model])  # fmt: skip
         self._r0, self._v0, self._c0 = r[-1].copy(), v[-1].copy(), c[-1].copy()
-        # E0 -> ECEF at t = j T_nav since the navigator's start (SPEC §1), then l-frame terms.
+        # E0 -> ECEF at t = j T_nav since the navigator's start (docs/interface.md §1), then l-frame
+        # terms.
         j = self._done + np.arange(1, cycles + 1)
         r_e, v_e, c_be = e0_state_to_ecef(j * self.t_nav, r[1:], v[1:], c[1:])
         lat, lon, alt = ecef_to_geodetic(r_e)
@@ -475,7 +477,7 @@ def navigate_multirate(
     p : int
         ``P = T_nav / T_int`` (intermediate steps per navigation cycle), ≥ 1.
     gravity_model : str
-        Gravitation model for ``g_l`` (SPEC §1).
+        Gravitation model for ``g_l`` (docs/interface.md §1).
     normalize : bool
         Normalize ``q_b^l`` after each fast step (``paper`` mode).
     table1_radii : bool

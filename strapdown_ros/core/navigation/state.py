@@ -3,7 +3,7 @@
 The navigator works in geodetic coordinates and the local-level NED frame (Waldmann, seeds/004,
 §2: latitude λ, longitude Λ, altitude h, ground velocity ``U_l = [V_N, V_E, V_D]``, attitude
 ``D_l^b`` as the quaternion ``q_b^l`` of eq. (33)). Streams carry their truth in the inertial E0
-frame (SPEC §1, §3); :func:`state_from_stream` and :func:`truth_navigation` convert
+frame (docs/interface.md §1, §3); :func:`state_from_stream` and :func:`truth_navigation` convert
 E0 → ECEF → geodetic/NED with :mod:`strapdown_ros.core.earth`.
 """
 
@@ -35,7 +35,7 @@ class NavState:
     Attributes
     ----------
     t : float
-        Time since the stream's E0 epoch (SPEC §1), s.
+        Time since the stream's E0 epoch (docs/interface.md §1), s.
     lat, lon : float
         Geodetic latitude λ and longitude Λ, rad.
     alt : float
@@ -56,7 +56,7 @@ class NavState:
 
 
 def _times(stream: Stream, index: NDArray[np.int64]) -> Array:
-    """Time since the E0 epoch of truth samples ``index`` (SPEC §1-§2)."""
+    """Time since the E0 epoch of truth samples ``index`` (docs/interface.md §1-§2)."""
     offset_ns = stream.t0_ns - int(stream.e0_epoch_ns or stream.t0_ns)
     return (offset_ns + index.astype(np.float64) * stream.period_ns) * 1e-9
 
@@ -67,13 +67,13 @@ def truth_navigation(
     """Truth of a stream in navigation terms at truth samples ``index``.
 
     E0 → ECEF by ``r^E = C_E0^E R^E0``, ``v^E = C_E0^E V^E0 - ω_ie × r^E``,
-    ``C_B^E = C_E0^E C_B^E0`` (SPEC §1, Savage 2020 (E-7)); then geodetic coordinates,
+    ``C_B^E = C_E0^E C_B^E0`` (docs/interface.md §1, Savage 2020 (E-7)); then geodetic coordinates,
     ``v^N = C_E^N v^E`` and ``C_B^N = C_E^N C_B^E``.
 
     Parameters
     ----------
     stream : Stream
-        A stream whose truth is in E0 (SPEC §3).
+        A stream whose truth is in E0 (docs/interface.md §3).
     index : array of int, optional
         Truth sample indices m (default: all, 0..M).
 
@@ -103,7 +103,8 @@ def truth_navigation(
 def state_from_stream(stream: Stream, m: int = 0) -> NavState:
     """Error-free initial navigation state from truth sample ``m`` of a stream.
 
-    The first truth message is the initial state at t0 (SPEC §2); the conversion is that of
+    The first truth message is the initial state at t0 (docs/interface.md §2); the conversion is
+    that of
     :func:`truth_navigation`. This is Waldmann's ``λ(0), Λ(0), h(0)`` (9), ``U_l(0)`` (27) and
     ``q_b^l(0)`` (33) "given" by an ideal alignment.
 

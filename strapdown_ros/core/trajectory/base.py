@@ -3,7 +3,7 @@
 Conventions: times ``t`` are seconds since the stream start t0 (cycle m = 0); geodetic
 latitude/longitude in rad, ellipsoidal altitude in m (WGS-84); velocity relative to the Earth
 in NED (m/s); attitude ``C_B^N`` of the body FRD frame relative to NED. E0 is the inertial frame
-equal to ECEF at t0 (SPEC §1).
+equal to ECEF at t0 (docs/interface.md §1).
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ class Trajectory(Protocol):
 
 
 def local_to_e0(truth: LocalTruth) -> TruthE0:
-    """Convert navigation-terms truth to E0 (SPEC §1: ``C_E^E0(t) = Rz(ω_ie t)``).
+    """Convert navigation-terms truth to E0 (docs/interface.md §1: ``C_E^E0(t) = Rz(ω_ie t)``).
 
     ``R^E = ecef(lat, lon, alt)``, ``v^E = C_N^E v^N``, ``C_B^E = C_N^E C_B^N``, then
     ``R^E0 = C_E^E0 R^E``, ``V^E0 = C_E^E0 (v^E + ω_ie × R^E)``, ``C_B^E0 = C_E^E0 C_B^E``

@@ -89,14 +89,14 @@ def generate_increments_stream(
     t0_ns : int
         Stamp of cycle 0 (ns since the Unix epoch).
     gravity_model : str
-        Gravitation model of the stream (SPEC §1), passed to
+        Gravitation model of the stream (docs/interface.md §1), passed to
         :func:`~strapdown_ros.core.gravity.gravitation`.
 
     Returns
     -------
     Stream
         ``Δα_m = ω T``, ``Δv_m = f T`` for m = 1..M and the E0 truth from eqs. (2)-(4), which
-        therefore meets the SPEC §3 exactness rule to float64 rounding.
+        therefore meets the docs/interface.md §3 exactness rule to float64 rounding.
 
     Raises
     ------

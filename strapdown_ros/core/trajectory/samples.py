@@ -10,7 +10,7 @@ España & Miranda 2007 (``seeds/003``, implemented in
   relative to the Earth is the derivative of that one spline, so position and velocity are
   consistent. (The paper fits in an inertial frame; ECEF is used because the truth is
   Earth-referenced and E → E0 is an exact rotation, :func:`~.base.local_to_e0`.)
-* **Attitude** — ``q_B^E0`` (body FRD to the inertial frame E0 of SPEC §1, the paper's
+* **Attitude** — ``q_B^E0`` (body FRD to the inertial frame E0 of docs/interface.md §1, the paper's
   ``q_b^i``), either
 
   - ``fit``: Problem 1 on the attitude samples with ``½ q̃ ⊗ [0, ω̃]`` as derivative data
@@ -723,7 +723,7 @@ class SamplesTrajectory:
         )
 
     def truth_e0(self, t: ArrayLike) -> TruthE0:
-        """Truth at ``t`` directly in E0 (SPEC §1), without the geodetic round trip.
+        """Truth at ``t`` directly in E0 (docs/interface.md §1), without the geodetic round trip.
 
         ``R^E0 = C_E^E0(t) r^E``, ``V^E0 = C_E^E0 (v^E + ω_ie × r^E)`` from the position spline
         and its derivative, ``C_B^E0`` from the fitted quaternion (normalized). Equal to

@@ -5,7 +5,8 @@ w.r.t. NED) followed by segments of constant Euler-angle rates with an along-tra
 a target climb rate or a constant NED acceleration, blended over ``transition`` with a C²
 quintic smoothstep. Everything but latitude and longitude is a closed-form polynomial per
 piece; latitude and longitude come from :class:`~.latlon_path.LatLonPath`. Frames and units:
-NED, FRD, rad, m, s (SPEC §1). Theory and accuracy: docs/theory/trajectories.md ("segments").
+NED, FRD, rad, m, s (docs/interface.md §1). Theory and accuracy: docs/theory/trajectories.md
+("segments").
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ _NCHAN = 7
 #: Horizontal parametrisation of a piece: (P, Q) = (speed, course) or (v_N, v_E).
 _TRACK, _NED = 0, 1
 
-#: Limits of a physically meaningful trajectory (SPEC §5: impossible trajectories are rejected).
+#: Limits of a physically meaningful trajectory (docs/interface.md §5: impossible trajectories are
+#rejected).
 PITCH_LIMIT = math.radians(89.9)
 ALTITUDE_MIN = -10_000.0
 LATITUDE_LIMIT = math.radians(89.9)
