@@ -246,3 +246,35 @@ def test_tf_off_and_datum_key(tmp_path: Path) -> None:
     np.testing.assert_allclose(
         [t.x, t.y, t.z], _ecef(np.radians(10.0), np.radians(20.0), 5.0), rtol=0, atol=1e-6
     )
+
+
+def test_increment_topics_beside_each_imu(tmp_path: Path) -> None:
+    """``recording.increments: true``: <imu>_dv / <imu>_dq per Imu message, Δv = a·T and Δq the
+    rotation of Δα = ω·T (FLU), same stamps and frame; off by default."""
+    doc = yaml.safe_load(DEFAULT.read_text())
+    doc["duration_s"] = 1.0
+    doc["recording"] = {**doc.get("recording", {}), "increments": True}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    scenario = load_scenario(path)
+    generate_dataset(scenario, tmp_path / "inc")
+    payloads: dict[str, list[bytes]] = defaultdict(list)
+    with Reader(tmp_path / "inc") as reader:
+        for conn, _, raw in reader.messages():
+            payloads[conn.topic].append(raw)
+    period = scenario.period_ns * 1e-9
+    for imu_topic in ("/reference/imu", "/variation/imu", "/variation/imu_measured"):
+        imu = cdr.deserialize(cdr.IMU, payloads[imu_topic])
+        dv = cdr.deserialize(cdr.VECTOR3_STAMPED, payloads[f"{imu_topic}_dv"])
+        dq = TS.deserialize_cdr(payloads[f"{imu_topic}_dq"][7], cdr.QUATERNION_STAMPED)
+        np.testing.assert_array_equal(dv.stamps_ns, imu.stamps_ns)
+        assert dv.frame_id == imu.frame_id == dq.header.frame_id
+        np.testing.assert_array_equal(dv.vector, imu.linear_acceleration * period)
+        phi = imu.angular_velocity[7] * period
+        theta = np.linalg.norm(phi)
+        q = [dq.quaternion.x, dq.quaternion.y, dq.quaternion.z, dq.quaternion.w]
+        want = [*(np.sin(theta / 2) * phi / theta), np.cos(theta / 2)]
+        np.testing.assert_allclose(q, want, rtol=0, atol=1e-16)
+    generate_dataset(load_scenario(DEFAULT, duration_s=0.5), tmp_path / "default")
+    with Reader(tmp_path / "default") as reader:
+        assert not any(c.topic.endswith(("_dv", "_dq")) for c in reader.connections)
