@@ -91,8 +91,9 @@ def bitwise_equal(a, b) -> bool:
     return True
 
 
-def scenario_without_tf(path: Path) -> Path:
-    """A copy of scenario ``path`` with ``tf: {enabled: false, map_odometry: false}``.
+def scenario_without_tf(path: Path, *, aiding: bool = True) -> Path:
+    """A copy of scenario ``path`` with ``tf: {enabled: false, map_odometry: false}`` (and
+    without its ``aiding`` section when ``aiding`` is false).
 
     The node tests compare a node's own streams with ``generate``'s; TF and the map-frame
     odometry (published beside them by every node) are tested by test_tf.py (against truth) and
@@ -106,7 +107,10 @@ def scenario_without_tf(path: Path) -> Path:
     doc = yaml.safe_load(path.read_text())
     doc.setdefault("name", path.stem)
     doc["tf"] = {"enabled": False, "map_odometry": False}
-    out = Path(tempfile.gettempdir()) / f"strapdown_no_tf_{os.getpid()}" / path.name
+    if not aiding:
+        doc.pop("aiding", None)
+    tag = "" if aiding else "_no_aiding"
+    out = Path(tempfile.gettempdir()) / f"strapdown_no_tf{tag}_{os.getpid()}" / path.name
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(yaml.safe_dump(doc, sort_keys=False))
     return out

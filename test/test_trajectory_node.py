@@ -32,7 +32,8 @@ from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.reader import read_bag  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
+# The node's own streams: no TF/map topics and no aiding sensors (aiding_node's, tested apart).
+SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml", aiding=False)
 RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
 DURATION_S = 3.0
 TOPICS = {
