@@ -10,7 +10,7 @@ In one process, side by side:
   duration (every stream, written to a bag): ``campaign_run_vs_generate`` (< 1: a campaign run
   is cheaper than a full generate, because the shared streams are computed once).
 
-Usage: python bench/bench_campaign.py [SCENARIO] [--runs 8] [--duration 120] [--repeats 2]
+Usage: python bench/bench_campaign.py [SCENARIO] [--runs 8] [--duration 300] [--repeats 2]
 Last lines: ``campaign_run_vs_generate: X`` and ``campaign_speedup_2_workers: X x``.
 """
 
@@ -51,7 +51,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", default=str(DEFAULT))
     parser.add_argument("--runs", type=int, default=8)
-    parser.add_argument("--duration", type=float, default=120.0)
+    parser.add_argument("--duration", type=float, default=300.0)
     parser.add_argument("--repeats", type=int, default=2)
     args = parser.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start")
