@@ -9,7 +9,6 @@ model (:mod:`strapdown_ros.core.aiding`). Keys, models and presets: docs/aiding.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
@@ -25,6 +24,7 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    with_preset,
 )
 from strapdown_ros.core.aiding.baro import BaroErrors
 from strapdown_ros.core.aiding.gnss import GnssErrors
@@ -126,18 +126,6 @@ def _frame(value: Any) -> Any:
 
 
 FrameId = Annotated[str | None, BeforeValidator(_frame)]
-
-
-def _with_preset(presets: Mapping[str, Mapping[str, Any]], data: Any) -> Any:
-    """``data`` with the preset's values for the keys not given (or given as null)."""
-    if not isinstance(data, Mapping):
-        return data
-    preset = data.get("preset")
-    if not isinstance(preset, str) or preset not in presets:
-        return data  # no preset, or a bad one (reported by the field)
-    merged: dict[str, Any] = dict(presets[preset])
-    merged.update({k: v for k, v in data.items() if v is not None or k not in merged})
-    return merged
 
 
 def _arr(value: Axes | None, default: float = 0.0) -> np.ndarray:
@@ -258,7 +246,7 @@ class GnssSpec(_Sensor):
     @model_validator(mode="before")
     @classmethod
     def _apply_preset(cls, data: Any) -> Any:
-        return _with_preset(GNSS_PRESETS, data)
+        return with_preset(GNSS_PRESETS, data)
 
     @model_validator(mode="after")
     def _taus(self) -> GnssSpec:
@@ -346,7 +334,7 @@ class BarometerSpec(_Sensor):
     @model_validator(mode="before")
     @classmethod
     def _apply_preset(cls, data: Any) -> Any:
-        return _with_preset(BAROMETER_PRESETS, data)
+        return with_preset(BAROMETER_PRESETS, data)
 
     @model_validator(mode="after")
     def _taus(self) -> BarometerSpec:
@@ -401,7 +389,7 @@ class MagnetometerSpec(_Sensor):
     @model_validator(mode="before")
     @classmethod
     def _apply_preset(cls, data: Any) -> Any:
-        return _with_preset(MAGNETOMETER_PRESETS, data)
+        return with_preset(MAGNETOMETER_PRESETS, data)
 
     @field_validator("decimal_year", mode="before")
     @classmethod
@@ -470,7 +458,7 @@ class WheelOdometerSpec(_Sensor):
     @model_validator(mode="before")
     @classmethod
     def _apply_preset(cls, data: Any) -> Any:
-        return _with_preset(WHEEL_ODOMETER_PRESETS, data)
+        return with_preset(WHEEL_ODOMETER_PRESETS, data)
 
     def errors(self) -> OdometerErrors:
         """The core model's parameters (dimensionless, m/s, pulses/m)."""

@@ -35,6 +35,7 @@ __all__ = [
     "Vector3",
     "error_from_validation",
     "join_key",
+    "with_preset",
 ]
 
 
@@ -84,6 +85,22 @@ Vector3 = Annotated[tuple[Finite, Finite, Finite], _length(3)]
 def vector(n: int) -> Any:
     """The type of a list of ``n`` finite numbers."""
     return Annotated[tuple[(Finite,) * n], _length(n)]  # type: ignore[misc]
+
+
+def with_preset(presets: Mapping[str, Mapping[str, Any]], data: Any) -> Any:
+    """``data`` with the values of its ``preset`` for the keys not given (or given as null).
+
+    For a ``mode="before"`` model validator of a section with presets; a missing or unknown
+    preset leaves ``data`` as it is (the ``preset`` field reports an unknown one).
+    """
+    if not isinstance(data, Mapping):
+        return data
+    preset = data.get("preset")
+    if not isinstance(preset, str) or preset not in presets:
+        return data
+    merged: dict[str, Any] = dict(presets[preset])
+    merged.update({k: v for k, v in data.items() if v is not None or k not in merged})
+    return merged
 
 
 class Model(BaseModel):

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import BeforeValidator, field_validator, model_validator
 
-from strapdown_ros.config.base import Model, ScenarioError, StrictInt
+from strapdown_ros.config.base import Model, ScenarioError, StrictInt, with_preset
 from strapdown_ros.core.imu_errors import (
     G0,
     ImuErrorParameters,
@@ -343,14 +343,7 @@ class ImuErrorsSpec(Model):
     @classmethod
     def _apply_preset(cls, data: Any) -> Any:
         """The preset's values for the sensor keys not given (or given as null)."""
-        if not isinstance(data, Mapping):
-            return data
-        preset = data.get("preset")
-        if not isinstance(preset, str) or preset not in PRESETS:
-            return data  # no preset, or a bad one (reported by the field)
-        merged: dict[str, Any] = dict(PRESETS[preset])
-        merged.update({k: v for k, v in data.items() if v is not None or k not in merged})
-        return merged
+        return with_preset(PRESETS, data)
 
     @field_validator("seed", mode="before")
     @classmethod
