@@ -89,7 +89,9 @@ def test_ros_free_tier_fails_tests_that_import_rclpy(tmp_path: Path) -> None:
     assert re.search(r"PASSED .*::test_plain", out), out
     for name in ("test_child_imports_rclpy", "test_hidden_in_process_import"):
         assert re.search(rf"ERROR .*::{name} - rclpy was imported", out), (name, out)
-    child, hidden = out.split("ERROR at teardown of ")[1:3]
+    # the per-test error sections, without the short summary (which lists both tests)
+    sections = out.split("short test summary info")[0]
+    child, hidden = sections.split("ERROR at teardown of ")[1:3]
     assert child.startswith("test_child_imports_rclpy"), out
     assert "import rclpy in a child process: " in child and "in the test process" not in child
     assert hidden.startswith("test_hidden_in_process_import"), out
