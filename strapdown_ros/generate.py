@@ -8,9 +8,6 @@ This module only orchestrates: the mathematics is in :mod:`strapdown_ros.core` a
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import queue
-import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -18,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from strapdown_ros.bag.batches import Batch
 from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.navigator import navigator_spec
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
+from strapdown_ros.producer import Piece, Producer
 from strapdown_ros.stages.aiding import (
     aiding_custom_data,
     aiding_spec,
@@ -133,91 +130,6 @@ def bag_custom_data(scenario: Scenario) -> dict[str, str]:
 
 
 
-_END = "end"
-
-
-def _portable(exc: BaseException) -> BaseException:
-    """``exc`` if it survives pickling with the same type and message (it is re-raised in the
-    parent as it is), else a RuntimeError with its type, message and the worker's traceback."""
-    import pickle
-    import traceback
-
-    try:
-        back = pickle.loads(pickle.dumps(exc))
-        if type(back) is type(exc) and str(back) == str(exc):
-            return exc
-    except Exception:  # noqa: S110 - not picklable: described below
-        pass
-    tb = "".join(traceback.format_exception(exc))
-    return RuntimeError(f"{type(exc).__name__}: {exc} (in the generator worker)\n{tb}")
-
-
-def _produce(items: Iterator[object], out: object, forked: bool = False) -> None:
-    """Producer body (thread or forked process): put every item, then _END or the exception.
-
-    A forked worker ignores SIGINT: Ctrl-C reaches the parent (same process group), which
-    stops the worker; the worker must not print a traceback of its own.
-    """
-    if forked:
-        import signal
-
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        for item in items:
-            out.put(item)  # type: ignore[attr-defined]
-        out.put(_END)  # type: ignore[attr-defined]
-    except BaseException as exc:  # re-raised by the consumer
-        out.put(_portable(exc) if forked else exc)  # type: ignore[attr-defined]
-
-
-class _Producer:
-    """Computes the next pieces while the caller writes the previous ones.
-
-    On Linux the producer is a forked process (true parallelism on the second core; the
-    already-built trajectory is inherited, pieces come back pickled); elsewhere a thread.
-    At most ``depth`` pieces wait in the queue, which bounds memory.
-    """
-
-    def __init__(self, items: Iterator[object], depth: int = 2) -> None:
-        if "fork" in mp.get_all_start_methods():
-            ctx = mp.get_context("fork")
-            self._queue = ctx.Queue(maxsize=depth)
-            self._worker: threading.Thread | mp.process.BaseProcess = ctx.Process(
-                target=_produce, args=(items, self._queue, True), daemon=True
-            )
-        else:
-            self._queue = queue.Queue(maxsize=depth)  # type: ignore[assignment]
-            self._worker = threading.Thread(target=_produce, args=(items, self._queue), daemon=True)
-        self._worker.start()
-
-    def __iter__(self) -> Iterator[object]:
-        while True:
-            try:
-                item = self._queue.get(timeout=1.0)
-            except queue.Empty:
-                if not self._worker.is_alive():
-                    raise RuntimeError("the generator worker died without a result") from None
-                continue
-            if isinstance(item, str) and item == _END:
-                return
-            if isinstance(item, BaseException):
-                raise item
-            yield item
-
-    def close(self) -> None:
-        """Stop the worker (if still running) and release the queue."""
-        if isinstance(self._worker, threading.Thread):
-            return  # a daemon thread; it ends with the iterator or the process
-        if self._worker.is_alive():
-            self._worker.terminate()
-        self._worker.join(timeout=5)
-        self._queue.close()
-
-
-
-
-
-
 def generate_dataset(
     scenario: Scenario,
     out: str | Path,
@@ -257,7 +169,7 @@ def generate_dataset(
     # --- issue 16: aiding sensors from /reference/odom (docs/aiding.md) ---
     aiding = generate_aiding_stream(scenario)
 
-    def pieces() -> Iterator[tuple[int, dict[str, Residuals], list[Batch]]]:
+    def pieces() -> Iterator[Piece]:
         streamer = None if scenario.variation is None else VariationStage.offline(scenario, total)
         navigator = None
         if scenario.navigator is not None:
@@ -281,9 +193,9 @@ def generate_dataset(
             batches = batches + frames.feed_batches(batches)
             if static is not None:  # /tf_static once, at t0, first
                 batches, static = [static, *batches], None
-            yield piece.cycles, res, batches, nav_errors
+            yield Piece(piece.cycles, res, batches, nav_errors)
 
-    producer = _Producer(pieces())
+    producer = Producer(pieces())
     done = 0
     parts: dict[str, list[Residuals]] = {}
     try:

@@ -223,10 +223,10 @@ def _raising(exc: BaseException):
 def test_worker_errors_reach_the_user(kind) -> None:
     """An error raised in generate's worker process arrives with the same message."""
     from strapdown_ros.config import ScenarioError
-    from strapdown_ros.generate import _Producer
+    from strapdown_ros.producer import Producer
 
     exc = ScenarioError("trajectory.kind", "bad") if kind == "scenario" else _OddError("a", "b")
-    producer = _Producer(_raising(exc))
+    producer = Producer(_raising(exc))
     try:
         with pytest.raises(Exception) as info:
             list(producer)

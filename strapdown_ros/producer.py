@@ -1,0 +1,207 @@
+"""The producer of ``generate``: computes the next pieces while the caller writes the previous.
+
+On Linux the producer is a forked process (true parallelism on the second core; the already-built
+trajectory is inherited). A piece's batches hold ~260 000 small ``bytes`` payloads; sending them
+through the queue's pipe (pickled, 64 KiB at a time, the two processes taking turns) cost the
+writing process 0.2–0.5 s per piece, a third of the time it spent writing. So the worker spools
+each piece's payloads into one file in a private directory on ``/dev/shm`` (a RAM file system;
+the system temporary directory where there is none) and sends only the stamps and the layout;
+the writing process reads the file back in one call and splits it into the very same ``bytes``
+objects (docs/benchmarks.md). Elsewhere (no ``fork``) the producer is a thread and nothing is
+copied. Pure standard library and numpy; no ROS.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import pickle
+import queue
+import shutil
+import signal
+import tempfile
+import threading
+import traceback
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.cdr import split_rows
+
+__all__ = ["Piece", "Producer"]
+
+_END = "end"
+
+
+class Piece(NamedTuple):
+    """One piece of ``generate``'s output: cycles done, residuals, batches, navigator errors."""
+
+    cycles: int
+    residuals: dict[str, object]
+    batches: list[Batch]
+    nav_errors: dict[str, float]
+
+
+class _Packed(NamedTuple):
+    """A batch's payloads joined into one buffer: ``size`` bytes each (or ``lengths``)."""
+
+    data: bytes
+    size: int  # every payload's length, or -1: see lengths
+    lengths: NDArray[np.int64] | None
+
+
+class _SpoolFile(NamedTuple):
+    """What crosses the pipe for a piece: the file that holds it."""
+
+    path: Path
+
+
+def portable(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling with the same type and message (it is re-raised in the
+    parent as it is), else a RuntimeError with its type, message and the worker's traceback."""
+    try:
+        back = pickle.loads(pickle.dumps(exc))  # noqa: S301 - our own object, this process
+        if type(back) is type(exc) and str(back) == str(exc):
+            return exc
+    except Exception:  # noqa: S110 - not picklable: described below
+        pass
+    tb = "".join(traceback.format_exception(exc))
+    return RuntimeError(f"{type(exc).__name__}: {exc} (in the generator worker)\n{tb}")
+
+
+def _pack(payloads: Sequence[bytes | memoryview]) -> _Packed:
+    lengths = np.fromiter(map(len, payloads), dtype=np.int64, count=len(payloads))
+    data = b"".join(payloads)
+    if lengths.size and bool((lengths == lengths[0]).all()):
+        return _Packed(data, int(lengths[0]), None)
+    return _Packed(data, -1, lengths)
+
+
+def _unpack(packed: _Packed) -> list[bytes]:
+    if packed.lengths is None:
+        return split_rows(np.frombuffer(packed.data, dtype=np.uint8).reshape(-1, packed.size))
+    ends = np.cumsum(packed.lengths).tolist()
+    starts = [0, *ends[:-1]] if ends else []
+    data = packed.data
+    return [data[a:z] for a, z in zip(starts, ends, strict=True)]
+
+
+def _spool_piece(piece: Piece, path: Path) -> _SpoolFile:
+    """Write ``piece`` to ``path``, each batch's payloads as one buffer."""
+    batches = [b._replace(payloads=_pack(b.payloads)) for b in piece.batches]
+    with open(path, "wb") as f:
+        pickle.dump(piece._replace(batches=batches), f, protocol=pickle.HIGHEST_PROTOCOL)
+    return _SpoolFile(path)
+
+
+def _unspool_piece(spooled: _SpoolFile) -> Piece:
+    """Inverse of :func:`_spool_piece` (the same ``bytes`` payloads); removes the file."""
+    with open(spooled.path, "rb") as f:
+        piece: Piece = pickle.load(f)  # noqa: S301 - written by our own worker just now
+    spooled.path.unlink()
+    return piece._replace(batches=[b._replace(payloads=_unpack(b.payloads)) for b in piece.batches])
+
+
+def _spool_root() -> str | None:
+    shm = "/dev/shm"  # noqa: S108 - a private mkdtemp directory inside it
+    return shm if os.path.isdir(shm) and os.access(shm, os.W_OK | os.X_OK) else None
+
+
+class _PipeChannel:
+    """A forked worker's channel: items pickled into a pipe synchronously (no feeder thread,
+    which the worker's long compiled calls would starve), at most ``depth`` pieces in flight."""
+
+    def __init__(self, ctx: mp.context.BaseContext, depth: int) -> None:
+        self.reader, self.writer = ctx.Pipe(duplex=False)
+        self.slots = ctx.BoundedSemaphore(depth)
+
+    def put(self, item: object) -> None:
+        if isinstance(item, _SpoolFile):
+            self.slots.acquire()  # released by the reader once the piece is taken
+        self.writer.send(item)
+
+    def get(self, timeout: float) -> object:
+        if not self.reader.poll(timeout):
+            raise queue.Empty
+        item = self.reader.recv()
+        if isinstance(item, _SpoolFile):
+            self.slots.release()
+        return item
+
+    def close(self) -> None:
+        self.reader.close()
+        self.writer.close()
+
+
+def _produce(items: Iterator[Piece], out: object, spool: Path | None = None) -> None:
+    """Producer body (thread or forked process): put every item, then _END or the exception.
+
+    A forked worker (``spool`` given) ignores SIGINT: Ctrl-C reaches the parent (same process
+    group), which stops the worker; the worker must not print a traceback of its own.
+    """
+    if spool is not None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        k = 0
+        for item in items:
+            if spool is not None and isinstance(item, Piece):
+                item, k = _spool_piece(item, spool / f"piece{k}.bin"), k + 1
+            out.put(item)  # type: ignore[attr-defined]
+        out.put(_END)  # type: ignore[attr-defined]
+    except BaseException as exc:  # re-raised by the consumer
+        out.put(portable(exc) if spool is not None else exc)  # type: ignore[attr-defined]
+
+
+class Producer:
+    """Iterate over ``items`` computed ahead in a worker; at most ``depth`` pieces wait.
+
+    The worker is a forked process where ``fork`` exists (pieces cross through a spool
+    directory, removed by :meth:`close`), else a thread. Items that are not :class:`Piece`
+    are passed on as they are. An exception in the worker is raised by the iteration.
+    """
+
+    def __init__(self, items: Iterator[Piece], depth: int = 2) -> None:
+        self._spool: Path | None = None
+        self._queue: _PipeChannel | queue.Queue[object]
+        if "fork" in mp.get_all_start_methods():
+            ctx = mp.get_context("fork")
+            self._spool = Path(tempfile.mkdtemp(prefix="strapdown-generate-", dir=_spool_root()))
+            self._queue = _PipeChannel(ctx, depth)
+            self._worker: threading.Thread | mp.process.BaseProcess = ctx.Process(
+                target=_produce, args=(items, self._queue, self._spool), daemon=True
+            )
+        else:
+            self._queue = queue.Queue(maxsize=depth)
+            self._worker = threading.Thread(target=_produce, args=(items, self._queue), daemon=True)
+        self._worker.start()
+
+    def __iter__(self) -> Iterator[Piece]:
+        while True:
+            try:
+                item = self._queue.get(timeout=1.0)
+            except queue.Empty:
+                if not self._worker.is_alive():
+                    raise RuntimeError("the generator worker died without a result") from None
+                continue
+            if isinstance(item, str) and item == _END:
+                return
+            if isinstance(item, BaseException):
+                raise item
+            if isinstance(item, _SpoolFile):
+                item = _unspool_piece(item)
+            yield item  # type: ignore[misc]
+
+    def close(self) -> None:
+        """Stop the worker (if still running), release the channel, remove the spool."""
+        if isinstance(self._worker, threading.Thread):
+            return  # a daemon thread; it ends with the iterator or the process
+        if self._worker.is_alive():
+            self._worker.terminate()
+        self._worker.join(timeout=5)
+        self._queue.close()  # type: ignore[union-attr]
+        if self._spool is not None:
+            shutil.rmtree(self._spool, ignore_errors=True)
