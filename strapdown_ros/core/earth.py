@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from strapdown_ros.core.rotations import matrix3
+from strapdown_ros.core.threads import rowwise
 
 __all__ = [
     "A_WGS84",
@@ -147,6 +148,14 @@ def geodetic_to_ecef(lat: ArrayLike, lon: ArrayLike, alt: ArrayLike) -> NDArray[
         Position ``r^E`` in ECEF (frame E), m. Inputs broadcast against each other.
     """
     lat, lon, alt = np.broadcast_arrays(_f64(lat), _f64(lon), _f64(alt))
+    if lat.ndim == 1:  # long arrays on two threads, same bits (core/threads.py)
+        return rowwise(_geodetic_to_ecef, lat, lon, alt)
+    return _geodetic_to_ecef(lat, lon, alt)
+
+
+def _geodetic_to_ecef(
+    lat: NDArray[np.float64], lon: NDArray[np.float64], alt: NDArray[np.float64]
+) -> NDArray[np.float64]:
     lat, lon, alt = lat.astype(_LD), lon.astype(_LD), alt.astype(_LD)
     s, c = np.sin(lat), np.cos(lat)
     n = _A_LD / np.sqrt(1 - _E2_LD * s * s)

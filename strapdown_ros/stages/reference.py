@@ -16,7 +16,10 @@ Steps (docs/interface.md §2-§3, Savage 2020):
 
 from __future__ import annotations
 
+import os
+from collections import deque
 from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -184,6 +187,7 @@ def generate_reference_chunks(
     trajectory: Trajectory | None = None,
     chunk_cycles: int = CHUNK_CYCLES,
     first_cycles: int = FIRST_CHUNK_CYCLES,
+    workers: int = 1,
 ) -> Iterator[Stream]:
     """The reference stream of ``scenario`` in consecutive pieces at the output rate.
 
@@ -223,7 +227,9 @@ def generate_reference_chunks(
         return
 
     period = gen_period_ns * 1e-9
-    for m0, m1 in _chunk_bounds(out_cycles, chunk_cycles, first_cycles):
+
+    def chunk(bounds: tuple[int, int]) -> Stream:
+        m0, m1 = bounds
         g0, g1 = m0 * oversample, m1 * oversample  # g0 is even: pairs align across chunks
         t = np.arange(g0, g1 + 1, dtype=np.int64) * gen_period_ns * 1e-9
         # Trajectories that know their E0 truth directly (samples) skip the geodetic round trip.
@@ -250,7 +256,22 @@ def generate_reference_chunks(
             gravity_model=model,
             e0_epoch_ns=scenario.start_time_ns,
         )
-        yield decimate(stream, oversample)
+        return decimate(stream, oversample)
+
+    bounds = _chunk_bounds(out_cycles, chunk_cycles, first_cycles)
+    if workers <= 1:
+        yield from map(chunk, bounds)
+        return
+    # Chunks are independent: compute them on ``workers`` threads (numpy and the compiled
+    # kernels release the GIL), in order, at most ``workers`` ahead.
+    with ThreadPoolExecutor(workers) as pool:
+        pending: deque[Future[Stream]] = deque()
+        for b in bounds:
+            pending.append(pool.submit(chunk, b))
+            if len(pending) > workers:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
 
 
 def slice_stream(stream: Stream, m0: int, m1: int) -> Stream:
@@ -282,7 +303,9 @@ def concatenate_streams(pieces: Iterable[Stream]) -> Stream:
     )
 
 
-def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None) -> Stream:
+def generate_reference(
+    scenario: Scenario, trajectory: Trajectory | None = None, workers: int | None = None
+) -> Stream:
     """The reference stream of ``scenario`` at its output rate (interface.md §2-§3), in one piece.
 
     Parameters
@@ -292,7 +315,8 @@ def generate_reference(scenario: Scenario, trajectory: Trajectory | None = None)
     trajectory : Trajectory, optional
         Pre-built model (from :func:`build_trajectory`); built here if omitted.
     """
-    return concatenate_streams(generate_reference_chunks(scenario, trajectory))
+    workers = min(2, os.cpu_count() or 1) if workers is None else workers
+    return concatenate_streams(generate_reference_chunks(scenario, trajectory, workers=workers))
 
 
 def _truncate(stream: Stream, cycles: int) -> Stream:

@@ -38,10 +38,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import BSpline
 
 from strapdown_ros.core._compiled import matmul33
 from strapdown_ros.core.earth import (
@@ -56,6 +58,7 @@ from strapdown_ros.core.earth import (
     ned_velocity_from_ecef,
 )
 from strapdown_ros.core.rotations import dcm_from_quat, quat_from_dcm, rot_x, rot_y, rot_z
+from strapdown_ros.core.threads import MIN_ROWS, WORKERS
 from strapdown_ros.core.trajectory.base import LocalTruth, TrajectoryError, TruthE0
 from strapdown_ros.core.trajectory.giribet import (
     QuaternionSpline,
@@ -543,24 +546,47 @@ class SamplesTrajectory:
         w_v = _weights("velocity", w.velocity, n) if samples.v_ecef is not None else None
         w_a = _weights("acceleration", w.acceleration, n) if samples.a_ecef is not None else None
         w_p = _weights("position", w.position, n)
-        try:
-            self._pos = problem_pv(
-                bp,
-                pos.degree,
-                c,
-                tl,
-                samples.r_ecef,
-                w_p,
-                tau_v=None if w_v is None else tl,
-                v=samples.v_ecef,
-                w_v=0.0 if w_v is None else w_v,
-                tau_a=None if w_a is None else tl,
-                a=samples.a_ecef,
-                w_a=0.0 if w_a is None else w_a,
-            )
-        except ValueError as exc:
-            raise _under("position", exc) from None
 
+        def fit_position() -> BSpline:
+            try:
+                return problem_pv(
+                    bp,
+                    pos.degree,
+                    c,
+                    tl,
+                    samples.r_ecef,
+                    w_p,
+                    tau_v=None if w_v is None else tl,
+                    v=samples.v_ecef,
+                    w_v=0.0 if w_v is None else w_v,
+                    tau_a=None if w_a is None else tl,
+                    a=samples.a_ecef,
+                    w_a=0.0 if w_a is None else w_a,
+                )
+            except ValueError as exc:
+                raise _under("position", exc) from None
+
+        if samples.c_b_e is None or n < MIN_ROWS or WORKERS < 2:
+            self._pos = fit_position()
+            self._fit_attitude(samples, tl, median_dt)
+            return
+        # The two fits are independent here: the position's on a second thread (numpy, scipy
+        # and the compiled kernels release the GIL; same bits). A position error is raised
+        # first, as on one thread.
+        with ThreadPoolExecutor(1) as pool:
+            position = pool.submit(fit_position)
+            try:
+                self._fit_attitude(samples, tl, median_dt)
+            except BaseException:
+                self._pos = position.result()
+                raise
+            self._pos = position.result()
+
+    def _fit_attitude(self, samples: Samples, tl: Array, median_dt: float) -> None:
+        """The attitude spline (``attitude_method`` fit or integrate) of the samples."""
+        n = tl.size
+        opts = self.options
+        w = opts.weights
         # Attitude samples in E0 (q_B^E0 = C_E^E0(t) C_B^E), rates as omega_ib^B.
         if samples.c_b_e is not None:
             c_b_e = samples.c_b_e
