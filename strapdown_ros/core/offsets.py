@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from strapdown_ros.core.scan_filter import LinearFilter, smooth_attitude_offset
+from strapdown_ros.core.threads import rowwise
 
 __all__ = [
     "OffsetHistory",
@@ -67,7 +68,10 @@ class Sinusoids:
     phase: Array
 
     def __call__(self, t: Array) -> Array:
-        """The sum at times ``t`` (s, (N,)): (N, 3) m."""
+        """The sum at times ``t`` (s, (N,)): (N, 3) m (long ``t`` on two threads, same bits)."""
+        return rowwise(self._sum, np.asarray(t, dtype=np.float64).reshape(-1))
+
+    def _sum(self, t: Array) -> Array:
         out = np.zeros((t.size, 3))
         buf = np.empty((t.size, 3))
         tt = t[:, None]

@@ -169,17 +169,20 @@ def decimate(stream: Stream, factor: int) -> Stream:
 #: the chunking changes neither the results nor the messages; it bounds memory and lets the
 #: bag writer overlap the computation.
 CHUNK_CYCLES = 20_000
-#: The first chunk is short so that a consumer (the bag writer) can start early.
+#: The first chunk is short so that a consumer (the bag writer) can start early; the next ones
+#: double in length up to CHUNK_CYCLES.
 FIRST_CHUNK_CYCLES = 2_000
 
 
 def _chunk_bounds(total: int, chunk_cycles: int, first_cycles: int) -> Iterator[tuple[int, int]]:
+    """Chunks of ``first_cycles``, doubling up to ``chunk_cycles`` (all even): the consumer
+    starts early and, while it writes a chunk, the next (twice as long) is computed."""
     m0 = 0
     size = min(first_cycles, chunk_cycles)
     while m0 < total:
         m1 = min(m0 + size, total)
         yield m0, m1
-        m0, size = m1, chunk_cycles
+        m0, size = m1, min(2 * size, chunk_cycles)
 
 
 def generate_reference_chunks(
