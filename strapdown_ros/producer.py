@@ -106,9 +106,37 @@ def _unspool_piece(spooled: _SpoolFile) -> Piece:
     return piece._replace(batches=[b._replace(payloads=_unpack(b.payloads)) for b in piece.batches])
 
 
-def _spool_root() -> str | None:
-    shm = "/dev/shm"  # noqa: S108 - a private mkdtemp directory inside it
-    return shm if os.path.isdir(shm) and os.access(shm, os.W_OK | os.X_OK) else None
+#: Free space /dev/shm must have to hold the spool (two pieces in flight, ~115 MB each for the
+#: default flight); containers often mount a 64 MB /dev/shm, and then the temporary directory
+#: (page cache, usually on disk) is used.
+SHM_MIN_FREE = 1 << 30
+
+
+def _spool_root(shm: str = "/dev/shm") -> str | None:  # noqa: S108 - private mkdtemp inside
+    """``shm`` if it is a writable directory with :data:`SHM_MIN_FREE` bytes free, else None
+    (the system temporary directory)."""
+    if not (os.path.isdir(shm) and os.access(shm, os.W_OK | os.X_OK)):
+        return None
+    st = os.statvfs(shm)
+    return shm if st.f_bavail * st.f_frsize >= SHM_MIN_FREE else None
+
+
+_SPOOL_PREFIX = "strapdown-generate-"
+
+
+def _remove_stale_spools(root: Path) -> None:
+    """Remove spool directories of ``generate`` processes that no longer run (killed with
+    SIGKILL, which skips :meth:`Producer.close`): RAM on /dev/shm is not freed otherwise."""
+    for d in root.glob(f"{_SPOOL_PREFIX}*-*"):
+        pid = d.name[len(_SPOOL_PREFIX) :].split("-", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(d, ignore_errors=True)
+        except PermissionError:  # another user's running process
+            continue
 
 
 class _PipeChannel:
@@ -169,7 +197,10 @@ class Producer:
         self._queue: _PipeChannel | queue.Queue[object]
         if "fork" in mp.get_all_start_methods():
             ctx = mp.get_context("fork")
-            self._spool = Path(tempfile.mkdtemp(prefix="strapdown-generate-", dir=_spool_root()))
+            root = _spool_root()
+            _remove_stale_spools(Path(root or tempfile.gettempdir()))
+            prefix = f"{_SPOOL_PREFIX}{os.getpid()}-"
+            self._spool = Path(tempfile.mkdtemp(prefix=prefix, dir=root))
             self._queue = _PipeChannel(ctx, depth)
             self._worker: threading.Thread | mp.process.BaseProcess = ctx.Process(
                 target=_produce, args=(items, self._queue, self._spool), daemon=True

@@ -82,3 +82,41 @@ def test_close_mid_run_removes_spooled_pieces() -> None:
     next(it)  # the worker runs ahead by at most `depth` pieces, then waits
     producer.close()
     assert _spool_dirs() == before
+
+
+def test_spool_root_needs_free_space(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A small /dev/shm (containers mount 64 MB) is not used: the temporary directory is."""
+    from strapdown_ros import producer
+
+    assert producer._spool_root(str(tmp_path / "missing")) is None
+    assert producer._spool_root(str(tmp_path)) in (str(tmp_path), None)
+    monkeypatch.setattr(producer, "SHM_MIN_FREE", 1 << 62)  # more than any disk
+    assert producer._spool_root(str(tmp_path)) is None
+    monkeypatch.setattr(producer, "SHM_MIN_FREE", 0)
+    assert producer._spool_root(str(tmp_path)) == str(tmp_path)
+    # and the producer works from the fallback
+    monkeypatch.setattr(producer, "SHM_MIN_FREE", 1 << 62)
+    p = Producer(iter([_piece(0)]))
+    try:
+        (got,) = list(p)
+    finally:
+        p.close()
+    assert list(got.batches[0].payloads) == list(_piece(0).batches[0].payloads)
+
+
+def test_spool_of_a_killed_generate_is_removed(tmp_path: Path) -> None:
+    """A generate killed with SIGKILL leaves its spool; the next one removes it (dead pid only)."""
+    import subprocess
+    import sys
+
+    from strapdown_ros import producer
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    stale = tmp_path / f"strapdown-generate-{dead.stdout.strip()}-abc"
+    alive = tmp_path / f"strapdown-generate-{os.getppid()}-abc"
+    for d in (stale, alive):
+        d.mkdir()
+        (d / "piece0.bin").write_bytes(b"x" * 10)
+    producer._remove_stale_spools(tmp_path)
+    assert not stale.exists() and alive.exists()
