@@ -15,9 +15,17 @@ plugin ``test/tiers.py``, registered here.
 from __future__ import annotations
 
 import os
+import signal
 
 import pytest
 import tiers
+
+# A test run started in the background of a non-interactive shell (``cmd &``) inherits SIGINT
+# *ignored*, and an ignored signal stays ignored across exec: the command-line processes the
+# Ctrl-C tests start would never see their Ctrl-C. A handled signal is reset to the default on
+# exec, so installing Python's handler here gives every child the normal Ctrl-C behaviour.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 DOMAIN_ID_ENV = "STRAPDOWN_TEST_DOMAIN_ID"
 #: Domain ids 1..101 keep Fast DDS' ports (7400 + 250 * id + ...) below Linux' ephemeral range.
