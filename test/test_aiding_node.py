@@ -7,11 +7,11 @@ the tunnel moved into the run (GNSS outage, ABS wheel sensor), each live at 5x r
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from node_testing import executable
 
 from strapdown_ros.bag.reader import read_bag
 
@@ -19,13 +19,6 @@ REPO = Path(__file__).resolve().parent.parent
 AIDING = ("/gnss/fix", "/gnss/vel", "/baro/pressure", "/mag", "/wheel/twist")
 
 pytestmark = pytest.mark.slow
-
-
-def _exe(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    if not local.exists():
-        pytest.skip(f"{name} is not installed (make setup)")
-    return str(local)
 
 
 @pytest.mark.parametrize(
@@ -41,12 +34,12 @@ def test_run_equals_generate(tmp_path, ros_env, scenario, overrides) -> None:
     gen, live = tmp_path / "generate", tmp_path / "run"
     common = ["--duration", "8", *overrides]
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "generate", str(path), "--out", str(gen), "--quiet", *common],
+        [executable("strapdown-sim"), "generate", str(path), "--out", str(gen), "--quiet", *common],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "run", str(path), "--out", str(live), *common,
+        [executable("strapdown-sim"), "run", str(path), "--out", str(live), *common,
          "--rate-factor", "5", "--domain-id", ros_env["ROS_DOMAIN_ID"]],
         capture_output=True, text=True, timeout=240, env=dict(ros_env),
     )  # fmt: skip

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from node_testing import executable
 
 from strapdown_ros.bag.reader import read_bag
 
@@ -64,13 +65,6 @@ def _launch_importable() -> bool:
 needs_launch = pytest.mark.skipif(not _launch_importable(), reason=NO_LAUNCH)
 
 
-def _exe(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    if not local.exists():
-        pytest.skip(f"{name} is not installed (make setup)")
-    return str(local)
-
-
 def _load_launch_module():
     spec = importlib.util.spec_from_file_location("pipeline_launch", LAUNCH)
     module = importlib.util.module_from_spec(spec)
@@ -80,7 +74,7 @@ def _load_launch_module():
 
 def _generate(out: Path, duration: str) -> None:
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out), "--quiet",
+        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out), "--quiet",
          "--duration", duration],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
@@ -166,7 +160,7 @@ def test_nodes_with_params_file_in_worst_start_order(tmp_path, ros_env) -> None:
     procs = []
     try:
         for node in NODES:
-            args = [_exe(node), "--ros-args", "--params-file", str(PARAMS)]
+            args = [executable(node), "--ros-args", "--params-file", str(PARAMS)]
             args += ["-p", f"scenario:={SCENARIO}"]
             args += ["-p", f"output:={live}"] if node == "bag_recorder" else []
             args += ["-p", f"duration_s:={duration}"] if node != "bag_recorder" else []

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from node_testing import scenario_without_tf
+from node_testing import executable, scenario_without_tf
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
@@ -46,13 +46,6 @@ NAV_TOPICS = {
 TIMEOUT_S = 90.0
 
 
-def _exe(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    if not local.exists():
-        pytest.skip(f"{name} is not installed (make setup)")
-    return str(local)
-
-
 @pytest.fixture(scope="module")
 def scenario():
     return load_scenario(SCENARIO, [], DURATION_S)
@@ -61,7 +54,7 @@ def scenario():
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [_exe("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
+    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
     cmd += ["--duration", str(DURATION_S), "--quiet"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -300,7 +293,7 @@ def test_three_node_pipeline_equals_generate(bag, procs, ros_env, tmp_path) -> N
     common = [f"scenario:={SCENARIO}", f"duration_s:={DURATION_S}"]
 
     def node(name: str, *params: str) -> Proc:
-        cmd = [_exe(name), "--ros-args"]
+        cmd = [executable(name), "--ros-args"]
         for p in (*common, *params):
             cmd += ["-p", p]
         proc = Proc(cmd, ros_env, tmp_path, name)

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from node_testing import executable
 
 from strapdown_ros.bag.reader import read_bag
 
@@ -26,13 +26,6 @@ SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 DURATION_S = 4.0
 
 pytestmark = pytest.mark.slow
-
-
-def _exe(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    if not local.exists():
-        pytest.skip(f"{name} is not installed (make setup)")
-    return str(local)
 
 
 def _own_processes(marker: str) -> list[str]:
@@ -62,13 +55,14 @@ def test_run_equals_generate_with_zero_loss(tmp_path, ros_env, rate_hz, duration
     gen, live = tmp_path / "generate", tmp_path / "run"
     common = ["--duration", str(duration_s), "--set", f"rate_hz={rate_hz}"]
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "generate", str(scenario), "--out", str(gen), "--quiet", *common],
+        [executable("strapdown-sim"), "generate", str(scenario), "--out", str(gen), "--quiet",
+         *common],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     env = dict(ros_env)
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "run", str(scenario), "--out", str(live), *common,
+        [executable("strapdown-sim"), "run", str(scenario), "--out", str(live), *common,
          "--domain-id", env["ROS_DOMAIN_ID"]],
         capture_output=True, text=True, timeout=240, env=env,
     )  # fmt: skip
@@ -100,7 +94,7 @@ def generated_30s(tmp_path_factory) -> Path:
     """generate's bag of default.yaml shortened to FLOW_DURATION_S (200 Hz)."""
     gen = tmp_path_factory.mktemp("flow") / "generate"
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
+        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
          "--duration", str(FLOW_DURATION_S)],
         capture_output=True, text=True, timeout=180,
     )  # fmt: skip
@@ -118,7 +112,7 @@ def test_flow_controlled_run_is_lossless(tmp_path, ros_env, generated_30s, pace)
     live = tmp_path / "run"
     env = dict(ros_env)
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "run", str(scenario), "--out", str(live),
+        [executable("strapdown-sim"), "run", str(scenario), "--out", str(live),
          "--duration", str(FLOW_DURATION_S), *pace, "--domain-id", env["ROS_DOMAIN_ID"]],
         capture_output=True, text=True, timeout=300, env=env,
     )  # fmt: skip
@@ -151,7 +145,7 @@ def test_failing_node_stops_the_pipeline(tmp_path, ros_env) -> None:
     scenario = _scenario_copy(tmp_path)
     env = dict(ros_env)
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "run", str(scenario), "--out", str(tmp_path / "run"),
+        [executable("strapdown-sim"), "run", str(scenario), "--out", str(tmp_path / "run"),
          "--duration", "2", "--set", "variation.method=1", "--domain-id", env["ROS_DOMAIN_ID"]],
         capture_output=True, text=True, timeout=180, env=env,
     )  # fmt: skip
@@ -166,7 +160,7 @@ def test_run_refuses_existing_output(tmp_path) -> None:
     out = tmp_path / "bag"
     out.mkdir()
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "run", str(SCENARIO), "--out", str(out), "--duration", "1"],
+        [executable("strapdown-sim"), "run", str(SCENARIO), "--out", str(out), "--duration", "1"],
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert proc.returncode == 2 and "exists already" in proc.stderr
@@ -177,14 +171,14 @@ def test_replay_into_navigator_matches_offline(tmp_path, ros_env) -> None:
     navigator_node: its recorded output equals the bag's own /navigator/* payloads."""
     gen, out = tmp_path / "generate", tmp_path / "replay"
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
+        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
          "--duration", "3"],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     env = dict(ros_env)
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "replay", str(gen), "--into", "navigator", "--out", str(out),
+        [executable("strapdown-sim"), "replay", str(gen), "--into", "navigator", "--out", str(out),
          "--domain-id", env["ROS_DOMAIN_ID"]],
         capture_output=True, text=True, timeout=180, env=env,
     )  # fmt: skip

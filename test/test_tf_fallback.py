@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from node_testing import executable
 
 from strapdown_ros.bag.reader import read_bag
 
@@ -22,13 +22,6 @@ REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 
 pytestmark = pytest.mark.slow
-
-
-def _exe(name: str) -> str:
-    local = Path(sys.executable).parent / name
-    if not local.exists():
-        pytest.skip(f"{name} is not installed (make setup)")
-    return str(local)
 
 
 def test_run_without_tf2_msgs_records_generates_tf(tmp_path, ros_env) -> None:
@@ -42,12 +35,13 @@ def test_run_without_tf2_msgs_records_generates_tf(tmp_path, ros_env) -> None:
     gen, live = tmp_path / "generate", tmp_path / "run"
     common = ["--duration", "2"]
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet", *common],
+        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
+         *common],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     proc = subprocess.run(
-        [_exe("strapdown-sim"), "run", str(SCENARIO), "--out", str(live), *common,
+        [executable("strapdown-sim"), "run", str(SCENARIO), "--out", str(live), *common,
          "--domain-id", env["ROS_DOMAIN_ID"]],
         capture_output=True, text=True, timeout=300, env=env,
     )  # fmt: skip
