@@ -24,7 +24,7 @@ from strapdown_ros.config import load_scenario
 from strapdown_ros.config.aiding import AidingSpec
 from strapdown_ros.config.base import validate_section
 from strapdown_ros.stages.aiding import AidingStream
-from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
+from strapdown_ros.stages.reference import reference_batch_chunks
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 SPEC = {
@@ -47,7 +47,7 @@ def main() -> None:
     best_ref = best_aid = float("inf")
     for _ in range(args.repeats):
         t0 = time.perf_counter()
-        pieces = [b for _, b in reference_batch_chunks(scenario, build_trajectory(scenario))]
+        pieces = [b for _, b in reference_batch_chunks(scenario)]
         best_ref = min(best_ref, time.perf_counter() - t0)
         t0 = time.perf_counter()
         stream = AidingStream(scenario, spec)  # type: ignore[arg-type]

@@ -24,10 +24,10 @@ from strapdown_ros.config.base import validate_section
 from strapdown_ros.stages.aiding import (
     NOT_MEASURED_VARIANCE,
     AidingStream,
-    aiding_expected_counts,
+    aiding_topic_plans,
     igrf_coefficients,
 )
-from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
+from strapdown_ros.stages.reference import reference_batch_chunks
 
 REPO = Path(__file__).resolve().parent.parent
 DURATION_S = 40.0
@@ -77,7 +77,7 @@ def scenario():
 @pytest.fixture(scope="module")
 def reference(scenario):
     """The reference pieces' batches (as generate makes them)."""
-    return [batches for _, batches in reference_batch_chunks(scenario, build_trajectory(scenario))]
+    return [batches for _, batches in reference_batch_chunks(scenario)]
 
 
 def _odom_payloads(scenario, reference) -> list[bytes]:
@@ -364,10 +364,15 @@ def test_covariances_are_the_models(scenario, reference):
 
 
 def test_expected_counts(ideal_bag, scenario):
-    """aiding_expected_counts (the live pipeline's expectation) = what the stage wrote."""
+    """aiding_topic_plans (the live pipeline's expectation) = what the stage wrote: counts,
+    first and last header stamps."""
     cycles = len(ideal_bag["/reference/odom"]) - 1
-    expected = aiding_expected_counts(scenario, cycles, _spec(_ideal()))
+    plans = aiding_topic_plans(scenario, _spec(_ideal()), cycles)
+    expected = {p.topic: p.count for p in plans}
     assert expected == {t: len(ideal_bag.topics[t]) for t in expected}
+    for p in plans:
+        stamps = ideal_bag.topics[p.topic].fields.stamps_ns
+        assert (p.first_ns, p.last_ns) == (int(stamps[0]), int(stamps[-1]))
     assert set(expected) == {"/gnss/fix", "/gnss/vel", "/baro/pressure", "/mag", "/wheel/twist"}
 
 

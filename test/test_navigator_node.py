@@ -30,7 +30,8 @@ from strapdown_ros.config.navigator import navigator_spec
 from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.messages import stream_from_messages
-from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.navigation import NavigationStage
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
@@ -107,7 +108,7 @@ def _solver(scenario, warnings):
     """The stage as navigator_node builds it (period from the stamps, end from the scenario)."""
     spec = navigator_spec(scenario)
     return NavigationStage.for_scenario(
-        scenario, end_ns=input_end_ns(scenario, spec.imu_topic), warn=warnings.append,
+        scenario, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), warn=warnings.append,
         error=warnings.append,
     )  # fmt: skip
 

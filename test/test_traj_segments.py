@@ -12,7 +12,7 @@ from strapdown_ros.core.rotations import euler_from_dcm, vee
 from strapdown_ros.core.trajectory.base import TrajectoryError
 from strapdown_ros.core.trajectory.latlon_path import LatLonPath
 from strapdown_ros.core.trajectory.segments import Segment, SegmentsTrajectory
-from strapdown_ros.stages.reference import build_trajectory
+from strapdown_ros.plan import build_trajectory
 
 INITIAL = {
     "latitude_deg": 45.0,

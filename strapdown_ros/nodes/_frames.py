@@ -18,7 +18,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.nodes._common import message_class
-from strapdown_ros.stages.frames import FramesStage, node_derived_topics
+from strapdown_ros.plan.model import Plan
+from strapdown_ros.stages.frames import node_derived_topics
 
 __all__ = ["TF_OFF_REASON", "derived_outputs", "static_qos", "tf_unavailable"]
 
@@ -41,12 +42,12 @@ def tf_unavailable() -> str | None:
 
 
 def derived_outputs(
-    node: Node, frames: FramesStage, outputs: Iterable[str], *, static: bool = False
+    node: Node, plan: Plan, outputs: Iterable[str], *, static: bool = False
 ) -> dict[str, str]:
     """The derived topics (name → type) a node publishes beside its ``outputs``
     (:func:`~strapdown_ros.stages.frames.node_derived_topics`). Without tf2_msgs the TF topics
     are left out and the node logs why, once."""
-    topics = node_derived_topics(frames, outputs, static=static)
+    topics = node_derived_topics(plan, outputs, static=static)
     if any(m == cdr.TF_MESSAGE for m in topics.values()):
         error = tf_unavailable()
         if error is not None:

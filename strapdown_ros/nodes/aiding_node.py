@@ -25,6 +25,7 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
+from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStream, aiding_spec
 
 NODE_NAME = "aiding_node"
@@ -55,7 +56,8 @@ class AidingNode(BatchedInputNode):
         )
         for topic in self.stream.topics:
             self.add_output(topic, message_class(AIDING_MSGTYPES[topic]), self.qos)
-        self.last_truth_ns = self._last_truth_stamp(scenario)
+        plan = resolve_plan(scenario)
+        self.last_truth_ns = plan.last_stamp(scenario.recording.topics["reference_odom"])
         self._subscription = None
         self._started = False
         log.info(
@@ -63,13 +65,6 @@ class AidingNode(BatchedInputNode):
             f"{', '.join(spec.sensors())}; input {self.truth_topic}; outputs "
             f"{', '.join(self.stream.topics)}"
         )
-
-    @staticmethod
-    def _last_truth_stamp(scenario: Any) -> int:
-        from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-        cycles = output_cycles(scenario, build_trajectory(scenario))
-        return scenario.start_time_ns + cycles * scenario.period_ns
 
     # -- BatchedInputNode hooks -----------------------------------------------------------------
 

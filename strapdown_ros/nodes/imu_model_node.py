@@ -22,12 +22,12 @@ from strapdown_ros.nodes._common import (
     run_node,
 )
 from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.frames import FramesStage
 from strapdown_ros.stages.measurement import (
     MeasuredImuStream,
     format_stamp,
     imu_model_topics,
-    last_input_cycle,
 )
 
 NODE_NAME = "imu_model_node"
@@ -63,15 +63,16 @@ class ImuModelNode(BatchedInputNode):
             warn=lambda msg: log.warning(msg),
             error=lambda msg: log.error(msg),
         )
-        self.last_cycle = last_input_cycle(scenario, self.input_topic)
+        # Δv / Δq beside the measured IMU (recording.increments)
+        names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
+        plan = resolve_plan(scenario.with_recording(topics=names))
+        self.last_cycle = plan.last_cycle(self.input_topic)
         try:
             self.add_output(self.output_topic, message_class(cdr.IMU), self.qos)
         except Exception as exc:  # invalid topic name
             raise ParameterError("output_topic", str(exc)) from exc
-        # Δv / Δq beside the measured IMU (recording.increments)
-        names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
-        self.frames = FramesStage(scenario.with_recording(topics=names), variation_tf=False)
-        self.derived = derived_outputs(self, self.frames, [self.output_topic])
+        self.frames = FramesStage(plan, variation_tf=False)
+        self.derived = derived_outputs(self, plan, [self.output_topic])
         for topic, msgtype in self.derived.items():
             self.add_output(topic, message_class(msgtype), self.qos)
         self._subscription = None

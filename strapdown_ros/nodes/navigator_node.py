@@ -30,8 +30,9 @@ from strapdown_ros.nodes._common import (
     run_node,
 )
 from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.frames import FramedSolver, FramesStage
-from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+from strapdown_ros.stages.navigation import NavigationStage
 
 NODE_NAME = "navigator_node"
 
@@ -103,6 +104,10 @@ class NavigatorNode(BatchedInputNode):
         self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last output")
 
+        plan = None
+        if scenario is not None:  # the scenario with the node's output names
+            names = dict(scenario.recording.topics, navigator_odom=out_topics["odom"])
+            plan = resolve_plan(scenario.with_recording(topics=names))
         log = self.get_logger()
         self.solver = NavigationStage(
             spec,
@@ -110,7 +115,7 @@ class NavigatorNode(BatchedInputNode):
             initial=scenario.initial if scenario is not None else None,
             start_ns=scenario.start_time_ns if scenario is not None else None,
             nav_period_s=nav_period_s,
-            end_ns=input_end_ns(scenario, spec.imu_topic) if scenario is not None else None,
+            end_ns=plan.last_stamp(spec.imu_topic) if plan is not None else None,
             earth_frame=scenario.recording.frames["earth"] if scenario is not None else "earth",
             info=log.info,
             warn=lambda m: log.warning(m),
@@ -125,10 +130,9 @@ class NavigatorNode(BatchedInputNode):
                 self.add_output(topic, message_class(msgtype), self.qos)
             except Exception as exc:
                 raise ParameterError(f"{key}_topic", str(exc)) from exc
-        if scenario is not None:  # map -> navigator and the map-frame odometry
-            names = dict(scenario.recording.topics, navigator_odom=out_topics["odom"])
-            frames = FramesStage(scenario.with_recording(topics=names), variation_tf=False)
-            derived = derived_outputs(self, frames, [out_topics["odom"]])
+        if plan is not None:  # map -> navigator and the map-frame odometry
+            frames = FramesStage(plan, variation_tf=False)
+            derived = derived_outputs(self, plan, [out_topics["odom"]])
             for topic, msgtype in derived.items():
                 self.add_output(topic, message_class(msgtype), self.qos)
             self.solver = FramedSolver(self.solver, frames, derived)

@@ -58,6 +58,7 @@ from strapdown_ros.messages import (
     navsatfix_fields_from_geodetic,
     odometry_state,
 )
+from strapdown_ros.plan.model import TopicPlan
 from strapdown_ros.stages.checks import nonfinite_rows, without_rows
 
 __all__ = [
@@ -66,9 +67,7 @@ __all__ = [
     "AidingOutput",
     "AidingStream",
     "TruthRows",
-    "aiding_custom_data",
-    "aiding_expected_counts",
-    "aiding_log_delays",
+    "aiding_topic_plans",
     "aiding_spec",
     "aiding_topic_types",
     "epochs_in",
@@ -106,17 +105,6 @@ def aiding_topic_types(scenario: Scenario) -> dict[str, str]:
     """Topic -> message type of the aiding topics the scenario produces (enabled sensors)."""
     spec = aiding_spec(scenario)
     return {} if spec is None else {t: AIDING_MSGTYPES[t] for t in spec.topics()}
-
-
-def aiding_log_delays(scenario: Scenario) -> dict[str, int]:
-    """Bag log time minus header stamp (ns) of the aiding topics that have one (the GNSS
-    latency), for a recorder that logs at header stamps to write what ``generate`` writes."""
-    spec = aiding_spec(scenario)
-    gnss = None if spec is None else spec.sensors().get("gnss")
-    if gnss is None or not gnss.latency_ns:  # type: ignore[attr-defined]
-        return {}
-    delay = gnss.latency_ns  # type: ignore[attr-defined]
-    return {AIDING_TOPICS["gnss_fix"]: delay, AIDING_TOPICS["gnss_vel"]: delay}
 
 
 def generate_aiding_stream(scenario: Scenario) -> AidingStream | None:
@@ -567,14 +555,6 @@ _STRUCTURAL_KEYS = (
 )  # fmt: skip
 
 
-def aiding_custom_data(spec: AidingSpec | None) -> dict[str, str]:
-    """Bag ``custom_data`` describing the aiding section: ``aiding`` = the section as JSON
-    (the values the model resolved, presets filled in), read back by the report."""
-    if spec is None:
-        return {}
-    return {"aiding": spec.model_dump_json(exclude_none=True)}
-
-
 def error_free_spec(document: dict[str, Any]) -> AidingSpec:
     """The aiding section ``document`` with every error key removed (the truth of its sensors:
     same epochs, lever arms, outages, latency and frames)."""
@@ -593,19 +573,16 @@ def epochs_in(start_ns: int, stop_ns: int, period_ns: int) -> int:
     return stop_ns // period_ns - (-(-start_ns // period_ns)) + 1
 
 
-def aiding_expected_counts(scenario: Scenario, cycles: int, spec: AidingSpec | None = None
-                           ) -> dict[str, int]:  # fmt: skip
-    """Messages per aiding topic for truth cycles 0..``cycles`` (what ``generate`` writes).
+def aiding_topic_plans(scenario: Scenario, spec: AidingSpec, cycles: int) -> list[TopicPlan]:
+    """The aiding topics for truth cycles 0..``cycles`` (what ``generate`` writes): per topic its
+    message count, first and last header stamps and log delay (the GNSS latency).
 
     Epochs in ``[t0, t0 + cycles T]``; GNSS: minus the epochs inside outages and those whose
     release time ``stamp + latency`` is after the last truth stamp.
     """
-    spec = spec if spec is not None else aiding_spec(scenario)
-    if spec is None:
-        return {}
     t0 = scenario.start_time_ns
     t_end = t0 + cycles * scenario.period_ns
-    out: dict[str, int] = {}
+    out: list[TopicPlan] = []
     sensors = spec.sensors()
     for key, topics in (("gnss", ("gnss_fix", "gnss_vel")), ("barometer", ("baro",)),
                         ("magnetometer", ("mag",)), ("wheel_odometer", ("wheel",))):  # fmt: skip
@@ -613,15 +590,16 @@ def aiding_expected_counts(scenario: Scenario, cycles: int, spec: AidingSpec | N
         if sensor is None:
             continue
         p = sensor.period_ns
+        delay = sensor.latency_ns if isinstance(sensor, GnssSpec) else 0
+        stamps = np.arange(-(-t0 // p), (t_end - delay) // p + 1, dtype=np.int64) * p
         if isinstance(sensor, GnssSpec):
-            k = np.arange(-(-t0 // p), (t_end - sensor.latency_ns) // p + 1)
-            stamps = k * p
             keep = np.ones(len(stamps), dtype=bool)
             for a, b in sensor.outage_windows_ns(t0):
                 keep &= ~((stamps >= a) & (stamps < b))
-            n = int(np.count_nonzero(keep))
-        else:
-            n = epochs_in(t0, t_end, p)
+            stamps = stamps[keep]
+        first, last = (int(stamps[0]), int(stamps[-1])) if stamps.size else (None, None)
         for t in topics:
-            out[AIDING_TOPICS[t]] = n
+            topic = AIDING_TOPICS[t]
+            out.append(TopicPlan(topic, AIDING_MSGTYPES[topic], int(stamps.size), "aiding", None,
+                                 first, last, delay))  # fmt: skip
     return out

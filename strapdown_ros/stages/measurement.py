@@ -37,14 +37,12 @@ from strapdown_ros.messages import (
     imu_increments,
 )
 from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches
-from strapdown_ros.stages.reference import build_trajectory, output_cycles
 
 __all__ = [
     "MeasuredImuStream",
     "generate_measured_stream",
     "imu_errors_spec",
     "imu_model_topics",
-    "last_input_cycle",
     "measured_covariances",
     "measured_imu_fields",
 ]
@@ -78,18 +76,6 @@ def generate_measured_stream(scenario: Scenario) -> MeasuredImuStream | None:
     the scenario generates: :func:`strapdown_ros.config.imu_errors.check_imu_errors`).
     """
     return None if scenario.imu_errors is None else MeasuredImuStream(scenario)
-
-
-def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
-    """Last cycle the scenario publishes on ``input_topic`` (None: not one of its IMU topics).
-
-    The reference IMU ends at cycle M, the variation streams at the last even cycle < M.
-    """
-    key = next((k for k, v in scenario.recording.topics.items() if v == input_topic), None)
-    if key not in ("reference_imu", "variation_imu", "variation_reference_imu"):
-        return None
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    return cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
 
 
 def measured_covariances(model: ImuErrorModel) -> tuple[np.ndarray, np.ndarray]:

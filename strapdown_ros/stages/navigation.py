@@ -77,7 +77,6 @@ __all__ = [
     "build_navigator",
     "initial_state_from_scenario",
     "initial_state_from_truth",
-    "input_end_ns",
     "navigate_messages",
 ]
 
@@ -1207,15 +1206,3 @@ def navigate_messages(
     for topic, _, payload in stage.feed_fields(imu, truth, order >= n_truth):
         out.setdefault(by_topic[topic], []).append(bytes(payload))
     return out
-
-
-def input_end_ns(scenario: Scenario, imu_topic: str) -> int | None:
-    """Last IMU stamp of the scenario's stream on ``imu_topic`` (None if unknown)."""
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-    key = next((k for k, v in scenario.recording.topics.items() if v == imu_topic), None)
-    if key not in INPUT_STREAMS:
-        return None
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    last = cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
-    return scenario.start_time_ns + last * scenario.period_ns

@@ -108,11 +108,12 @@ def test_events_one_line_each_flood_limited_per_class() -> None:
 
 def _navigator(scenario, log):
     from strapdown_ros.config.navigator import navigator_spec
-    from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.stages.navigation import NavigationStage
 
     spec = navigator_spec(scenario)
     return NavigationStage.for_scenario(
-        scenario, spec, end_ns=input_end_ns(scenario, spec.imu_topic), info=log, warn=log,
+        scenario, spec, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), info=log, warn=log,
         error=log,
     )  # fmt: skip
 
@@ -172,10 +173,10 @@ VAR = {"/variation/imu": cdr.IMU, "/variation/odom": cdr.ODOMETRY}
 
 
 def _variation(scenario, log):
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
+    from strapdown_ros.plan import resolve_plan
     from strapdown_ros.stages.variation import VariationStage
 
-    cycles = output_cycles(scenario, build_trajectory(scenario))
+    cycles = resolve_plan(scenario).cycles
     return VariationStage(scenario, cycles, info=log, warn=log, error=log)
 
 
