@@ -1,9 +1,8 @@
 """``strapdown-sim generate``: every stream of a scenario, offline, into one rosbag2 directory.
 
-This module only orchestrates: the mathematics is in :mod:`strapdown_ros.core` and
-:mod:`strapdown_ros.stages.reference`, the messages in :mod:`strapdown_ros.messages`, the bag I/O in
-:mod:`strapdown_ros.bag`. The trajectory node publishes the very batches built here
-(:func:`reference_batches`), which is why the bag and the live topics carry identical messages.
+This module only orchestrates: it feeds the pieces of the reference stream through the stages
+of the chain (:mod:`strapdown_ros.plan.chain`) and writes what they return; the nodes run the
+same stage objects, which is why the bag and the live topics carry identical messages.
 """
 
 from __future__ import annotations
@@ -24,8 +23,8 @@ from strapdown_ros.plan import Plan, resolve_plan
 from strapdown_ros.plan.chain import feed_stages, offline_stages
 from strapdown_ros.plan.metadata import bag_custom_data
 from strapdown_ros.producer import Piece, Producer
-from strapdown_ros.stages.frames import STATIC_QOS
-from strapdown_ros.stages.reference import reference_batch_chunks
+from strapdown_ros.stages.tf import STATIC_QOS
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 __all__ = [
     "DatasetSummary",

@@ -477,12 +477,12 @@ def replay_into_navigator(
     ``navigator`` section, else the node's defaults) processes them; ``bag_recorder`` writes
     ``/navigator/*`` to ``out``. The recording is then compared payload for payload with the
     offline navigator on the same messages (the bag's own ``/navigator/*`` topics when they were
-    written with the same settings, else :func:`strapdown_ros.stages.navigation.navigate_messages`).
+    written with the same settings, else :func:`strapdown_ros.stages.navigator.navigate_messages`).
     """
     from strapdown_ros.bag.reader import read_bag
     from strapdown_ros.config import DEFAULT_TOPICS
     from strapdown_ros.config.navigator import NavigatorSpec, resolve_navigator
-    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, navigate_messages
+    from strapdown_ros.stages.navigator import OUTPUT_TOPICS, navigate_messages
 
     t_start = time.monotonic()
     out = Path(out)

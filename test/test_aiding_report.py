@@ -12,8 +12,8 @@ from strapdown_ros.config import load_scenario
 from strapdown_ros.config.aiding import AidingSpec
 from strapdown_ros.config.base import validate_section
 from strapdown_ros.report.aiding import aiding_errors, aiding_table, plot_aiding
-from strapdown_ros.stages.aiding import AidingStream
-from strapdown_ros.stages.reference import reference_batch_chunks
+from strapdown_ros.stages.aiding import AidingStage
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 REPO = Path(__file__).resolve().parent.parent
 DOC = {
@@ -28,7 +28,7 @@ DOC = {
 def _bag(tmp_path: Path, doc: dict, custom: bool) -> Path:
     scenario = load_scenario(REPO / "config/scenarios/default.yaml", duration_s=30.0)
     spec = validate_section(AidingSpec, doc, "aiding")
-    stream = AidingStream(scenario, spec)  # type: ignore[arg-type]
+    stream = AidingStage(scenario, spec)  # type: ignore[arg-type]
     path = tmp_path / "bag"
     data = {"aiding": spec.model_dump_json(exclude_none=True)} if custom else {}
     with BagWriter(path, custom_data=data) as writer:

@@ -173,8 +173,8 @@ def test_frames_stage_same_bytes_for_any_chunking() -> None:
     from strapdown_ros.bag.batches import merge_order
     from strapdown_ros.config import load_scenario
     from strapdown_ros.plan import resolve_plan
-    from strapdown_ros.stages.frames import FramesStage, derived_topic_plans, derived_topics
-    from strapdown_ros.stages.reference import reference_batch_chunks
+    from strapdown_ros.stages.tf import TFStage, derived_topic_plans, derived_topics
+    from strapdown_ros.stages.trajectory import reference_batch_chunks
     from strapdown_ros.stages.variation import VariationStage
 
     repo = Path(__file__).resolve().parent.parent
@@ -185,12 +185,12 @@ def test_frames_stage_same_bytes_for_any_chunking() -> None:
     source: list = []
     for _, batches in reference_batch_chunks(plan):
         source += batches + variation.feed_batches(batches)
-    whole = FramesStage(plan, offsets=variation.offsets)
+    whole = TFStage(plan, offsets=variation.offsets)
     expected: dict[str, list[bytes]] = {}
     for b in whole.feed_batches(source):
         expected.setdefault(b.topic, []).extend(bytes(p) for p in b.payloads)
     items = [(source[k].topic, stamp, source[k].payloads[i]) for k, i, stamp in merge_order(source)]
-    live = FramesStage(plan)  # the node computes the offsets itself
+    live = TFStage(plan)  # the node computes the offsets itself
     got: dict[str, list[bytes]] = {}
     rng = np.random.default_rng(7)
     pos = 0

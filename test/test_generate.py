@@ -20,7 +20,7 @@ from strapdown_ros.core.trajectory.base import local_to_e0
 from strapdown_ros.generate import generate_dataset
 from strapdown_ros.messages import navsatfix_geodetic, odometry_state, stream_from_messages
 from strapdown_ros.plan import build_trajectory
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "config" / "scenarios" / "default.yaml"

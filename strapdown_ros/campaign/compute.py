@@ -3,7 +3,7 @@
 A run is ``generate``'s chain (the same stage objects, fed the same pieces in the same order)
 restricted to what a campaign needs: the links its results (the navigator's errors) depend on
 (:func:`strapdown_ros.plan.chain.links_for`). What does not change between runs is
-computed once in the client and sent to every worker (:attr:`CampaignPlan.shared_level`):
+computed once in the client and sent to every worker (:attr:`Campaign.shared_level`):
 
 * ``variation``: the pieces of the navigator's inputs (the ideal IMU that the error model reads
   and the truth Odometry) — only the IMU errors (and navigator/aiding keys) vary;
@@ -27,11 +27,11 @@ import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.campaign.plan import CampaignPlan
 from strapdown_ros.campaign.results import RunResult, run_dir
+from strapdown_ros.campaign.runs import Campaign
 from strapdown_ros.plan import Plan, resolve_plan
 from strapdown_ros.plan.chain import feed_stages, link, links_for, offline_stages
-from strapdown_ros.stages.reference import reference_batch_chunks
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 __all__ = ["Shared", "run_links", "run_one", "shared_inputs"]
 
@@ -49,7 +49,7 @@ class Shared:
     pieces: list[list[Batch]] | None
 
 
-#: Chain links computed once for all runs at each shared level (CampaignPlan.shared_level).
+#: Chain links computed once for all runs at each shared level (Campaign.shared_level).
 SHARED_LINKS: dict[str, tuple[str, ...]] = {
     "variation": ("trajectory", "variation"),
     "reference": ("trajectory",),
@@ -66,7 +66,7 @@ def run_links(plan: Plan, level: str) -> list[str]:
     return [n for n in links_for(plan, RESULT_LINKS, have) if n not in shared]
 
 
-def shared_inputs(campaign: CampaignPlan) -> Shared:
+def shared_inputs(campaign: Campaign) -> Shared:
     """Compute the part of the streams that all runs share (in this process, once)."""
     level = campaign.shared_level
     shared = SHARED_LINKS[level]
@@ -104,7 +104,7 @@ def _errors(batches: list[Batch], topics: list[str]) -> tuple[np.ndarray, np.nda
     return stamps, np.hstack(columns)
 
 
-def run_one(shared: Shared, index: int, campaign: CampaignPlan, bags_out: str | None
+def run_one(shared: Shared, index: int, campaign: Campaign, bags_out: str | None
             ) -> RunResult:  # fmt: skip
     """Compute run ``index`` (in a worker): its navigator errors at the navigation rate.
 

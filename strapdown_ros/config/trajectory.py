@@ -4,7 +4,7 @@
 file uses (deg, deg/s, ...) and converts them to the SI arguments of its core model
 (:mod:`strapdown_ros.core.trajectory`): ``build`` for segments and coning, ``core_segments``
 for increments, ``fit_options`` for samples (whose samples are read by
-:mod:`strapdown_ros.stages.reference`). :func:`check_trajectory` holds the rules that need the
+:mod:`strapdown_ros.stages.trajectory`). :func:`check_trajectory` holds the rules that need the
 rest of the scenario (``initial``, the generation period). Problems only found while building
 (a segment decelerating past standstill, knots the samples cannot support) come back from the
 core as :class:`~strapdown_ros.core.trajectory.base.TrajectoryError`; :meth:`key_of` of each

@@ -1,6 +1,6 @@
 """``aiding_node``: GNSS, barometer, magnetometer and wheel odometer, live (issue 16).
 
-A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStream`, the object
+A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStage`, the object
 ``strapdown-sim generate`` feeds: raw truth Odometry payloads in (default
 ``/reference/odom``), in batches, serialized aiding messages out (``/gnss/fix``, ``/gnss/vel``,
 ``/baro/pressure``, ``/mag``, ``/wheel/twist`` for the enabled sensors), byte for byte the
@@ -26,7 +26,7 @@ from strapdown_ros.nodes._common import (
     run_node,
 )
 from strapdown_ros.plan import resolve_plan
-from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStream, aiding_spec
+from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStage, aiding_spec
 
 NODE_NAME = "aiding_node"
 
@@ -51,9 +51,10 @@ class AidingNode(BatchedInputNode):
         self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last truth message")
         log = self.get_logger()
-        self.stream = AidingStream(
-            scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg)
-        )
+        self.stream = AidingStage(
+            scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg),
+            error=lambda msg: log.error(msg),
+        )  # fmt: skip
         for topic in self.stream.topics:
             self.add_output(topic, message_class(AIDING_MSGTYPES[topic]), self.qos)
         plan = resolve_plan(scenario)

@@ -58,10 +58,10 @@ from strapdown_ros.nodes._common import (
     message_class,
     run_node,
 )
-from strapdown_ros.nodes._frames import tf_unavailable
+from strapdown_ros.nodes._tf import tf_unavailable
 from strapdown_ros.plan import resolve_plan
 from strapdown_ros.plan.metadata import bag_custom_data
-from strapdown_ros.stages.frames import STATIC_QOS, FramesStage
+from strapdown_ros.stages.tf import STATIC_QOS, TFStage
 from strapdown_ros.topics import spec_topics
 
 NODE_NAME = "bag_recorder"
@@ -167,20 +167,20 @@ class BagRecorder(SignalStop, Node):
             wanted = dict(spec_topics())
         # Without tf2_msgs, /tf and /tf_static cannot be received: derived here from the recorded
         # Odometry with the code generate uses (same bytes), and said so in the bag.
-        self._derive: FramesStage | None = None
+        self._derive: TFStage | None = None
         self._derived_tf: dict[str, Handler | None] = {}
         if plan is not None and not topic_specs:
             tf_topics = [n for n, m in wanted.items() if m == TF_MESSAGE]
             error = tf_unavailable() if tf_topics else None
             if error is not None:
-                self._derive = FramesStage(plan)
+                self._derive = TFStage(plan)
                 for name in tf_topics:
                     wanted.pop(name)
                     self._derived_tf[name] = None
                 self.get_logger().warning(
                     f"tf2_msgs/msg/TFMessage is not importable ({error}): "
                     f"{', '.join(tf_topics)} cannot be received; they are derived from the "
-                    "recorded Odometry with the code generate uses (FramesStage), and the bag's "
+                    "recorded Odometry with the code generate uses (TFStage), and the bag's "
                     "custom_data says so (tf: derived by bag_recorder)"
                 )
         self.topics: dict[str, _Topic] = {}

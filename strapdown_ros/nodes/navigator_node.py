@@ -1,6 +1,6 @@
 """``navigator_node``: the navigation stage, live (docs/interface.md §4, issue 5).
 
-A thin rclpy shell around :class:`~strapdown_ros.stages.navigation.NavigationStage` — the very
+A thin rclpy shell around :class:`~strapdown_ros.stages.navigator.NavigatorStage` — the very
 object ``strapdown-sim generate`` feeds, so ``/navigator/*`` are published with the bag's
 bytes. It subscribes raw to an IMU topic and, optionally, a truth Odometry topic, hands the
 payloads over in batches and publishes what the stage returns. Settings: the scenario's
@@ -29,10 +29,10 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.nodes._tf import derived_outputs
 from strapdown_ros.plan import resolve_plan
-from strapdown_ros.stages.frames import FramedSolver, FramesStage
-from strapdown_ros.stages.navigation import NavigationStage
+from strapdown_ros.stages.navigator import NavigatorStage
+from strapdown_ros.stages.tf import SolverWithTF, TFStage
 
 NODE_NAME = "navigator_node"
 
@@ -109,7 +109,7 @@ class NavigatorNode(BatchedInputNode):
             names = dict(scenario.recording.topics, navigator_odom=out_topics["odom"])
             plan = resolve_plan(scenario.with_recording(topics=names))
         log = self.get_logger()
-        self.solver = NavigationStage(
+        self.solver = NavigatorStage(
             spec,
             out_topics,
             initial=scenario.initial if scenario is not None else None,
@@ -131,11 +131,11 @@ class NavigatorNode(BatchedInputNode):
             except Exception as exc:
                 raise ParameterError(f"{key}_topic", str(exc)) from exc
         if plan is not None:  # map -> navigator and the map-frame odometry
-            frames = FramesStage(plan, variation_tf=False)
+            frames = TFStage(plan, variation_tf=False)
             derived = derived_outputs(self, plan, [out_topics["odom"]])
             for topic, msgtype in derived.items():
                 self.add_output(topic, message_class(msgtype), self.qos)
-            self.solver = FramedSolver(self.solver, frames, derived)
+            self.solver = SolverWithTF(self.solver, frames, derived)
         self._subs: list = []
         log.info(
             f"{spec.algorithm} navigator, mode {spec.mode}, N = "

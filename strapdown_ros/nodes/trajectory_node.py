@@ -2,8 +2,8 @@
 
 It publishes exactly the messages ``strapdown-sim generate`` writes for the reference stream,
 in the same order: the very CDR payloads of
-:func:`strapdown_ros.stages.reference.reference_batch_chunks` (pieces of
-:func:`~strapdown_ros.stages.reference.reference_batches`), in
+:func:`strapdown_ros.stages.trajectory.reference_batch_chunks` (pieces of
+:func:`~strapdown_ros.stages.trajectory.reference_batches`), in
 :func:`~strapdown_ros.bag.batches.merge_order`, published raw. The message with stamp ``t`` is
 published at wall time ``start + (t - t0) / rate_factor``. Parameters and behaviour:
 docs/nodes.md.
@@ -46,11 +46,11 @@ from strapdown_ros.nodes._common import (
     run_node,
     wait_for_subscriptions,
 )
-from strapdown_ros.nodes._frames import derived_outputs, static_qos
+from strapdown_ros.nodes._tf import derived_outputs, static_qos
 from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
 from strapdown_ros.plan import resolve_plan
-from strapdown_ros.stages.frames import FramesStage
-from strapdown_ros.stages.reference import reference_batch_chunks
+from strapdown_ros.stages.tf import TFStage
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 NODE_NAME = "trajectory_node"
 TIME_SOURCES = ("sim", "wall")
@@ -179,7 +179,7 @@ class TrajectoryNode(Node):
 
         self._msgtypes = self._topic_types()
         # TF (/tf_static, map -> base_link) and map-frame odometry of the reference
-        self.frames = FramesStage(self.plan, variation_tf=False)
+        self.frames = TFStage(self.plan, variation_tf=False)
         self._derived = derived_outputs(self, self.plan, list(self._msgtypes), static=True)
         self._static_topic = self._derived.pop(self.frames.tf_static_topic, None) and (
             self.frames.tf_static_topic

@@ -28,9 +28,9 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.nodes._frames import derived_outputs
+from strapdown_ros.nodes._tf import derived_outputs
 from strapdown_ros.plan import resolve_plan
-from strapdown_ros.stages.frames import FramedSolver, FramesStage
+from strapdown_ros.stages.tf import SolverWithTF, TFStage
 from strapdown_ros.stages.variation import IMU, ODOM, VariationStage
 
 NODE_NAME = "variation_node"
@@ -100,12 +100,12 @@ class VariationNode(BatchedInputNode):
                 raise ParameterError(names[topic], str(exc)) from exc
         # base_link -> variation_imu (variation truth relative to the reference input) and the
         # map-frame odometry of the outputs
-        frames = FramesStage(self.plan, offsets=self.solver.offsets)
+        frames = TFStage(self.plan, offsets=self.solver.offsets)
         outputs = [topics[k] for k in OUTPUT_PARAMETERS.values()]
         derived = derived_outputs(self, self.plan, outputs)
         for topic, msgtype in derived.items():
             self.add_output(topic, message_class(msgtype), self.qos)
-        self.solver = FramedSolver(self.solver, frames, derived, reference_input=ODOM)
+        self.solver = SolverWithTF(self.solver, frames, derived, reference_input=ODOM)
         self._input_subscriptions: list = []
         m_var = self.plan.variation_cycles
         log.info(

@@ -9,7 +9,7 @@ which nodes to start, downstream first, and how many subscriptions each topic wi
 all made from it; adding a stage is one entry here plus the stage itself.
 
 The ``tf`` link is not a process of its own: every node derives the TF, map-frame odometry and
-increment topics of its own outputs (``stages/frames.py``), and ``generate`` derives them after
+increment topics of its own outputs (``stages/tf.py``), and ``generate`` derives them after
 the other stages.
 """
 
@@ -106,24 +106,24 @@ def _variation_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
 
 
 def _imu_model_inputs(plan: Plan) -> tuple[str, ...]:
-    assert plan.imu_model_topics is not None
-    return (plan.imu_model_topics[0],)
+    assert plan.imu_errors_topics is not None
+    return (plan.imu_errors_topics[0],)
 
 
 def _imu_model_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
-    assert plan.imu_model_topics is not None
-    source, measured = plan.imu_model_topics
+    assert plan.imu_errors_topics is not None
+    source, measured = plan.imu_errors_topics
     src = upstream[source]
     key = "variation_imu_measured"  # a recording.topics key only under its recording name
     key = key if plan.scenario.recording.topics[key] == measured else None
     return {measured: TopicPlan(measured, MSGTYPES["variation_imu_measured"], src.count,
-                                "imu_model", key, src.first_ns, src.last_ns)}  # fmt: skip
+                                "imu_errors", key, src.first_ns, src.last_ns)}  # fmt: skip
 
 
 def _imu_model_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
-    from strapdown_ros.stages.measurement import MeasuredImuStream
+    from strapdown_ros.stages.imu_errors import ImuErrorsStage
 
-    return MeasuredImuStream(plan.scenario)
+    return ImuErrorsStage(plan.scenario)
 
 
 # -- navigator ----------------------------------------------------------------------------------
@@ -160,9 +160,9 @@ def _navigator_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
 
 
 def _navigator_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
-    from strapdown_ros.stages.navigation import NavigationStage
+    from strapdown_ros.stages.navigator import NavigatorStage
 
-    return NavigationStage.for_scenario(plan.scenario, plan.navigator, period_ns=plan.period_ns)
+    return NavigatorStage.for_scenario(plan.scenario, plan.navigator, period_ns=plan.period_ns)
 
 
 # -- aiding sensors -----------------------------------------------------------------------------
@@ -180,27 +180,27 @@ def _aiding_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
 
 
 def _aiding_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
-    from strapdown_ros.stages.aiding import AidingStream
+    from strapdown_ros.stages.aiding import AidingStage
 
     assert plan.aiding is not None
-    return AidingStream(plan.scenario, plan.aiding)
+    return AidingStage(plan.scenario, plan.aiding)
 
 
 # -- tf: TF, map-frame odometry and increments, derived from every other link's outputs ---------
 
 
 def _tf_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
-    from strapdown_ros.stages.frames import derived_topic_plans
+    from strapdown_ros.stages.tf import derived_topic_plans
 
     return {p.topic: p for p in derived_topic_plans(plan, upstream)}
 
 
 def _tf_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
-    from strapdown_ros.stages.frames import FramesStage
+    from strapdown_ros.stages.tf import TFStage
 
     variation = built.get("variation")
     offsets = None if variation is None else variation.offsets
-    return FramesStage(plan, offsets=offsets)
+    return TFStage(plan, offsets=offsets)
 
 
 def _none(plan: Plan) -> tuple[str, ...]:
@@ -216,7 +216,7 @@ CHAIN: tuple[Link, ...] = (
     Link("trajectory", "trajectory_node", _always, _none, _trajectory_outputs),
     Link("variation", "variation_node", lambda s: s.variation is not None, _variation_inputs,
          _variation_outputs, _variation_stage),  # fmt: skip
-    Link("imu_model", "imu_model_node", lambda s: s.imu_errors is not None, _imu_model_inputs,
+    Link("imu_errors", "imu_model_node", lambda s: s.imu_errors is not None, _imu_model_inputs,
          _imu_model_outputs, _imu_model_stage),  # fmt: skip
     Link("navigator", "navigator_node", lambda s: s.navigator is not None, _navigator_inputs,
          _navigator_outputs, _navigator_stage),  # fmt: skip
@@ -302,7 +302,7 @@ def live_graph(plan: Plan) -> tuple[list[LiveNode], dict[str, int]]:
     """The nodes ``run`` starts (in chain order; start them reversed, downstream first) and the
     number of subscriptions each produced topic will have: the recorder's plus one per node
     reading it."""
-    from strapdown_ros.stages.frames import node_derived_topics
+    from strapdown_ros.stages.tf import node_derived_topics
 
     subscribers = dict.fromkeys(plan.topics, 1)
     nodes: list[LiveNode] = []

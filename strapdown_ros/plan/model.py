@@ -67,7 +67,7 @@ class Plan:
     navigator : NavigatorSpec or None
         The ``navigator`` section, resolved (topics, mode, gravity model).
     imu_errors : ImuErrorsSpec or None
-    imu_model_topics : (str, str) or None
+    imu_errors_topics : (str, str) or None
         Input and output topic of the IMU error model.
     aiding : AidingSpec or None
         The ``aiding`` section when it enables a sensor.
@@ -89,7 +89,7 @@ class Plan:
     natural_duration_s: float
     navigator: NavigatorSpec | None
     imu_errors: ImuErrorsSpec | None
-    imu_model_topics: tuple[str, str] | None
+    imu_errors_topics: tuple[str, str] | None
     aiding: AidingSpec | None
     tf: TFSpec
     samples: Samples | None = None

@@ -51,7 +51,7 @@ def resolve_plan(scenario: Scenario, trajectory: Trajectory | None = None) -> Pl
         natural_duration_s=natural,
         navigator=navigator_spec(scenario),
         imu_errors=imu_errors,
-        imu_model_topics=None if imu_errors is None else imu_errors.topics(
+        imu_errors_topics=None if imu_errors is None else imu_errors.topics(
             scenario.recording.topics),
         aiding=aiding,
         tf=tf_spec(scenario),

@@ -26,7 +26,7 @@ from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
+from strapdown_ros.stages.intake import InputEvents, nonfinite_rows, stretches, without_rows
 
 __all__ = [
     "IMU",

@@ -1,6 +1,6 @@
 """TF, map-frame odometry and increment topics derived from a stage's messages.
 
-:class:`FramesStage` turns the serialized output of the other stages into the messages ROS
+:class:`TFStage` turns the serialized output of the other stages into the messages ROS
 tools expect (docs/interface.md, "Frames and TF"): ``/tf_static`` (``earth → map``,
 ``base_link → reference_imu``, ``base_link → variation_imu`` when its offsets are constant),
 ``/tf`` (``map → base_link`` from the reference truth, ``base_link → variation_imu`` from the
@@ -43,7 +43,7 @@ __all__ = [
     "ODOM_KEYS",
     "STATIC_QOS",
     "TF_TOPICS",
-    "FramesStage",
+    "TFStage",
     "derived_topic_plans",
     "derived_topics",
     "node_derived_topics",
@@ -112,7 +112,7 @@ def _source_topics(scenario: Scenario, keys: Iterable[str]) -> dict[str, str]:
 
 
 def derived_topics(scenario: Scenario, produced: Mapping[str, str]) -> dict[str, str]:
-    """The topics (name → message type) :class:`FramesStage` adds to the scenario's
+    """The topics (name → message type) :class:`TFStage` adds to the scenario's
     ``produced`` topics (``topics.produced_topics``), in the order ``generate`` creates them:
     ``/tf_static``, ``/tf``, then each source topic's map odometry / increments."""
     spec = tf_spec(scenario)
@@ -138,7 +138,7 @@ def _every(count: int, ratio: int) -> int:
 
 
 def derived_topic_plans(plan: Plan, upstream: Mapping[str, TopicPlan]) -> list[TopicPlan]:
-    """The topics :class:`FramesStage` derives from the ``upstream`` topics of a plan, in the
+    """The topics :class:`TFStage` derives from the ``upstream`` topics of a plan, in the
     order ``generate`` creates them, with their counts and stamps: ``/tf_static`` (one message
     at t0), ``/tf`` (the reference poses, the variation's unless static, the navigator's, each
     at its ``tf`` rate), the map-frame twin of each Odometry topic and the increments of each
@@ -199,7 +199,7 @@ class _Settings:
     increments: bool
 
 
-class FramesStage:
+class TFStage:
     """Derived TF / map-frame / increment batches of a scenario's message batches.
 
     Parameters
@@ -490,8 +490,8 @@ class FramesStage:
         ]
 
 
-class FramedSolver:
-    """A node's solver whose outputs come with their derived messages (:class:`FramesStage`).
+class SolverWithTF:
+    """A node's solver whose outputs come with their derived messages (:class:`TFStage`).
 
     ``on_batch(items)`` returns the solver's serialized outputs followed by the derived
     messages of those outputs whose topic is in ``topics`` (the ones the node publishes: TF is
@@ -501,7 +501,7 @@ class FramedSolver:
     def __init__(
         self,
         solver: object,
-        frames: FramesStage,
+        frames: TFStage,
         topics: Iterable[str],
         reference_input: object | None = None,
     ) -> None:
@@ -509,7 +509,7 @@ class FramedSolver:
         self.frames = frames
         self.topics = set(topics)
         #: the ``kind`` of the node's input items that are reference Odometry payloads (the
-        #: variation node's), fed to :meth:`FramesStage.observe_reference_payloads`
+        #: variation node's), fed to :meth:`TFStage.observe_reference_payloads`
         self.reference_input = reference_input
 
     def on_batch(self, items: list) -> list[tuple[str, int, bytes]]:
