@@ -9,6 +9,7 @@ model (:mod:`strapdown_ros.core.aiding`). Keys, models and presets: docs/aiding.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
@@ -26,13 +27,12 @@ from strapdown_ros.config.base import (
     Vector3,
     with_preset,
 )
-from strapdown_ros.core.aiding.baro import BaroErrors
-from strapdown_ros.core.aiding.gnss import GnssErrors
-from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
-from strapdown_ros.core.aiding.odometer import OdometerErrors
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
+if TYPE_CHECKING:  # imported by errors(): the core models load scipy.signal
+    from strapdown_ros.core.aiding.baro import BaroErrors
+    from strapdown_ros.core.aiding.gnss import GnssErrors
+    from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
+    from strapdown_ros.core.aiding.odometer import OdometerErrors
 
 __all__ = [
     "AIDING_TOPICS",
@@ -261,6 +261,8 @@ class GnssSpec(_Sensor):
 
     def errors(self) -> GnssErrors:
         """The core model's parameters (SI, NED)."""
+        from strapdown_ros.core.aiding.gnss import GnssErrors
+
         return GnssErrors(
             position_white=_arr(self.position_white_m),
             position_gm_sigma=_arr(self.position_gm_sigma_m),
@@ -343,6 +345,8 @@ class BarometerSpec(_Sensor):
 
     def errors(self) -> BaroErrors:
         """The core model's parameters (Pa, s)."""
+        from strapdown_ros.core.aiding.baro import BaroErrors
+
         return BaroErrors(
             bias=self.bias_pa or 0.0,
             turn_on_bias_sigma=self.turn_on_bias_sigma_pa or 0.0,
@@ -398,6 +402,8 @@ class MagnetometerSpec(_Sensor):
 
     def errors(self) -> MagnetometerErrors:
         """The core model's parameters (tesla, FRD)."""
+        from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
+
         return MagnetometerErrors(
             hard_iron=_arr(self.hard_iron_ut) * 1e-6,
             hard_iron_sigma=_arr(self.hard_iron_sigma_ut) * 1e-6,
@@ -462,6 +468,8 @@ class WheelOdometerSpec(_Sensor):
 
     def errors(self) -> OdometerErrors:
         """The core model's parameters (dimensionless, m/s, pulses/m)."""
+        from strapdown_ros.core.aiding.odometer import OdometerErrors
+
         return OdometerErrors(
             scale_factor=(self.scale_factor_ppm or 0.0) * 1e-6,
             scale_factor_sigma=(self.scale_factor_sigma_ppm or 0.0) * 1e-6,
@@ -503,8 +511,16 @@ class AidingSpec(Model):
         return [AIDING_TOPICS[k] for s in self.sensors() for k in keys[s]]
 
 
-def check_aiding(scenario: Scenario) -> None:
-    """Cross-field rules of ``aiding`` (called by the scenario's validation).
+def check_aiding(
+    spec: AidingSpec | None,
+    *,
+    period_ns: int,
+    start_time_s: float,
+    start_time_ns: int,
+    topics: Mapping[str, str],
+) -> None:
+    """Cross-field rules of ``aiding`` (called by the scenario's validation with its period T
+    ``period_ns``, its start ``start_time_s`` (and in ns) and its ``recording.topics``).
 
     Every epoch of a sensor (the multiples of its period P on the absolute time grid) must be
     a truth cycle: P a multiple of the scenario's period T and ``start_time_s`` on the grid of
@@ -516,11 +532,10 @@ def check_aiding(scenario: Scenario) -> None:
     ScenarioError
         Naming the key, e.g. ``aiding.gnss.rate_hz``.
     """
-    spec: AidingSpec | None = getattr(scenario, "aiding", None)
     if spec is None:
         return
-    t_ns = scenario.period_ns
-    t0 = scenario.start_time_ns
+    t_ns = period_ns
+    t0 = start_time_ns
     for key, sensor in spec.sensors().items():
         p_ns = sensor.period_ns
         if p_ns % t_ns:
@@ -532,7 +547,7 @@ def check_aiding(scenario: Scenario) -> None:
         if t0 % t_ns:
             raise ScenarioError(
                 f"aiding.{key}.rate_hz",
-                f"start_time_s = {scenario.start_time_s!r} is not a multiple of T = {t_ns} ns, "
+                f"start_time_s = {start_time_s!r} is not a multiple of T = {t_ns} ns, "
                 "so no epoch (a multiple of 1/rate_hz since the Unix epoch) is a truth cycle",
             )
         if key == "gnss" and 1_000_000_000 % p_ns:
@@ -549,7 +564,7 @@ def check_aiding(scenario: Scenario) -> None:
                 f"start_time_s gives the year {year:.3f}, outside IGRF-14 "
                 f"({IGRF_YEARS[0]:g}-{IGRF_YEARS[1]:g}); set decimal_year",
             )
-    used = set(scenario.recording.topics.values())
+    used = set(topics.values())
     for topic in spec.topics():
         if topic in used:
             raise ScenarioError("aiding", f"{topic} is also another stream's topic")

@@ -21,18 +21,17 @@ from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from strapdown_ros.config.aiding import AidingSpec, check_aiding
 from strapdown_ros.config.base import (
-    Finite,
     Model,
     NonNegative,
     Positive,
     ScenarioError,
     StrictBool,
     StrictInt,
-    Vector3,
     validate_section,
 )
 from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
-from strapdown_ros.config.navigator import NavigatorSpec, check_navigator
+from strapdown_ros.config.initial import Initial
+from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resolve_navigator
 from strapdown_ros.config.tf import TFSpec, check_tf
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
@@ -46,7 +45,9 @@ __all__ = [
     "ScenarioError",
     "apply_overrides",
     "load_scenario",
+    "navigator_spec",
     "parse_scenario",
+    "tf_spec",
 ]
 
 GRAVITY_MODELS = ("j2", "spherical")
@@ -83,26 +84,6 @@ DEFAULT_FRAMES: dict[str, str] = {
     "map": "map",
     "base_link": "base_link",
 }
-
-
-class Initial(Model):
-    """Initial state: geodetic position (WGS-84, ellipsoidal altitude), NED velocity (m/s),
-    roll/pitch/heading of the body FRD axes w.r.t. NED (deg)."""
-
-    # ±90° here; the segments and coning kinds need ±89.9° (their latitude integrates
-    # 1/cos φ): config.trajectory.check_trajectory.
-    latitude_deg: Annotated[Finite, Field(ge=-90.0, le=90.0)]
-    longitude_deg: Annotated[Finite, Field(ge=-180.0, le=360.0)]
-    altitude_m: Annotated[Finite, Field(ge=-10_000.0, le=1_000_000.0)] = 0.0
-    velocity_ned_mps: Vector3 = (0.0, 0.0, 0.0)
-    attitude_rph_deg: Vector3 = (0.0, 0.0, 0.0)
-
-    @field_validator("attitude_rph_deg")
-    @classmethod
-    def _pitch(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
-        if abs(value[1]) >= 90.0:
-            raise ScenarioError("[1]", f"pitch must be within ±90°, got {value[1]}")
-        return value
 
 
 def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]:
@@ -235,13 +216,47 @@ class Scenario(Model):
                 f"the generation period T/oversample = {self.period_ns}/{self.oversample} ns is "
                 "not an integer number of nanoseconds",
             )
-        check_trajectory(self)
-        check_imu_errors(self)
-        check_aiding(self)
-        check_navigator(self)
-        check_variation(self)
-        check_tf(self)
+        topics = self.recording.topics
+        check_trajectory(self.trajectory, self.initial, self.generation_period_ns)
+        check_imu_errors(self.imu_errors, topics, variation=self.variation is not None)
+        check_aiding(
+            self.aiding,
+            period_ns=self.period_ns,
+            start_time_s=self.start_time_s,
+            start_time_ns=self.start_time_ns,
+            topics=topics,
+        )
+        navigator = navigator_spec(self)
+        check_navigator(navigator, topics, self.sections())
+        check_variation(self.variation, self.rate_hz)
+        check_tf(
+            tf_spec(self),
+            self.period_ns,
+            None if navigator is None else self.period_ns * navigator.n,
+        )
         return self
+
+    def sections(self) -> frozenset[str]:
+        """Names of the optional parts the scenario has (``initial``, ``variation``,
+        ``navigator``, ``imu_errors``, ``tf``, ``aiding``): what the cross-section rules of
+        :func:`~strapdown_ros.config.navigator.resolve_navigator` ask about."""
+        names = ("initial", "variation", "navigator", "imu_errors", "tf", "aiding")
+        return frozenset(n for n in names if getattr(self, n) is not None)
+
+
+def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:
+    """The scenario's ``navigator`` section, resolved (None without one)."""
+    if scenario.navigator is None:
+        return None
+    return resolve_navigator(
+        scenario.navigator, scenario.recording.topics, scenario.gravity_model, scenario.sections()
+    )
+
+
+def tf_spec(scenario: Scenario) -> TFSpec:
+    """The scenario's ``tf`` section, defaults when it has none."""
+    spec = getattr(scenario, "tf", None)
+    return spec if isinstance(spec, TFSpec) else TFSpec()
 
 
 # ---------------------------------------------------------------------------------------------

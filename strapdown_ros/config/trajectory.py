@@ -29,6 +29,7 @@ from strapdown_ros.config.base import (
     Vector3,
     join_key,
 )
+from strapdown_ros.config.initial import Initial
 from strapdown_ros.core.trajectory.base import TrajectoryError
 from strapdown_ros.core.trajectory.coning import (
     AMPLITUDE_DEFAULT,
@@ -40,7 +41,6 @@ from strapdown_ros.core.trajectory.coning import (
     lowest_altitude,
 )
 from strapdown_ros.core.trajectory.increments import IncrementSegment, whole_cycles
-from strapdown_ros.core.trajectory.samples import FitOptions, SplineOptions, Weights
 from strapdown_ros.core.trajectory.segments import (
     ALTITUDE_MIN,
     LATITUDE_LIMIT,
@@ -48,10 +48,9 @@ from strapdown_ros.core.trajectory.segments import (
     Segment,
     SegmentsTrajectory,
 )
-from strapdown_ros.inputs.samples import CSV_NAMES
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Initial, Scenario
+if TYPE_CHECKING:  # imported by fit_options(): the spline fit loads numba
+    from strapdown_ros.core.trajectory.samples import FitOptions
 
 __all__ = [
     "KINDS",
@@ -539,6 +538,8 @@ class SamplesTrajectorySpec(Model):
     @field_validator("columns")
     @classmethod
     def _columns(cls, value: dict[str, str] | None) -> dict[str, str] | None:
+        from strapdown_ros.inputs.samples import CSV_NAMES
+
         for name in value or {}:
             if name not in CSV_NAMES:
                 raise ScenarioError(
@@ -624,6 +625,7 @@ class SamplesTrajectorySpec(Model):
 
     def fit_options(self) -> FitOptions:
         """The core fitting options."""
+        from strapdown_ros.core.trajectory.samples import FitOptions, SplineOptions, Weights
 
         def spline(fit: str) -> SplineOptions:
             return SplineOptions(
@@ -675,8 +677,11 @@ TrajectorySpec = Annotated[
 ]
 
 
-def check_trajectory(scenario: Scenario) -> None:
-    """Rules of ``trajectory`` that need the rest of the scenario (called by its validation).
+def check_trajectory(
+    spec: TrajectorySpec, initial: Initial | None, generation_period_ns: int
+) -> None:
+    """Rules of ``trajectory`` that need the rest of the scenario (called by its validation
+    with the scenario's ``initial`` and its generation period T / oversample in ns).
 
     * ``initial`` is required for every kind but ``samples`` (the samples define the start).
     * ``segments`` and ``coning``: ``|initial.latitude_deg| <= 89.9``. Their latitude and
@@ -696,8 +701,6 @@ def check_trajectory(scenario: Scenario) -> None:
     ScenarioError
         Naming the key.
     """
-    spec = scenario.trajectory
-    initial = scenario.initial
     if isinstance(spec, SamplesTrajectorySpec):
         return
     if initial is None:
@@ -740,7 +743,7 @@ def check_trajectory(scenario: Scenario) -> None:
                     f"altitude would fall to {low:.1f} m, below -10 km",
                 )
     if isinstance(spec, IncrementsTrajectorySpec):
-        period_ns = scenario.generation_period_ns
+        period_ns = generation_period_ns
         for i, seg in enumerate(spec.segments):
             if whole_cycles(seg.duration_s, period_ns) is None:
                 raise ScenarioError(

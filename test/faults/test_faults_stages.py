@@ -107,14 +107,14 @@ def test_events_one_line_each_flood_limited_per_class() -> None:
 
 
 def _navigator(scenario, log):
-    from strapdown_ros.config.navigator import navigator_spec
+    from strapdown_ros.config import navigator_spec
     from strapdown_ros.plan import resolve_plan
     from strapdown_ros.stages.navigation import NavigationStage
 
     spec = navigator_spec(scenario)
     return NavigationStage.for_scenario(
-        scenario, spec, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), info=log, warn=log,
-        error=log,
+        scenario, spec, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), info=log,
+        warn=log, error=log,
     )  # fmt: skip
 
 
