@@ -25,6 +25,7 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    shorten,
     with_preset,
 )
 
@@ -71,9 +72,9 @@ Matrix3 = tuple[Axes, Axes, Axes]
 
 def _finite(value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"must be a number, got {type(value).__name__} {value!r}")
+        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
     if not math.isfinite(value):
-        raise ValueError(f"must be finite, got {value!r}")
+        raise ValueError(f"must be finite, got {shorten(value)}")
     return float(value)
 
 
@@ -85,14 +86,14 @@ def _axes(sign: str) -> Any:
             return None
         if isinstance(value, list | tuple):
             if len(value) != 3:
-                raise ValueError(f"must be a number or a list of 3 numbers, got {value!r}")
+                raise ValueError(f"must be a number or a list of 3 numbers, got {shorten(value)}")
             out = tuple(_finite(v) for v in value)
         else:
             out = (_finite(value),) * 3
         if sign == "nonneg" and min(out) < 0:
-            raise ValueError(f"must be >= 0, got {value!r}")
+            raise ValueError(f"must be >= 0, got {shorten(value)}")
         if sign == "positive" and min(out) <= 0:
-            raise ValueError(f"must be > 0, got {value!r}")
+            raise ValueError(f"must be > 0, got {shorten(value)}")
         return out  # type: ignore[return-value]
 
     return BeforeValidator(convert)
@@ -102,11 +103,11 @@ def _matrix(value: Any) -> Matrix3 | None:
     if value is None:
         return None
     if not isinstance(value, list | tuple) or len(value) != 3:
-        raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {value!r}")
+        raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {shorten(value)}")
     rows = []
     for row in value:
         if not isinstance(row, list | tuple) or len(row) != 3:
-            raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {value!r}")
+            raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {shorten(value)}")
         rows.append(tuple(_finite(v) for v in row))
     return tuple(rows)  # type: ignore[return-value]
 
@@ -121,7 +122,7 @@ Seed = Annotated[StrictInt, Field(ge=0)]
 
 def _frame(value: Any) -> Any:
     if value is not None and (not isinstance(value, str) or not value or " " in value):
-        raise ValueError(f"must be a frame id, got {value!r}")
+        raise ValueError(f"must be a frame id, got {shorten(value)}")
     return value
 
 
@@ -206,11 +207,11 @@ def _outage(value: Any) -> Any:
     if isinstance(value, list | tuple) and len(value) == 2:
         start, end = (_finite(v) for v in value)
         if start < 0:
-            raise ValueError(f"the start must be >= 0 s, got {start!r}")
+            raise ValueError(f"the start must be >= 0 s, got {shorten(start)}")
         if not end > start:
-            raise ValueError(f"[start_s, end_s] needs end_s > start_s, got {list(value)!r}")
+            raise ValueError(f"[start_s, end_s] needs end_s > start_s, got {shorten(list(value))}")
         return (start, end)
-    raise ValueError(f"must be a window [start_s, end_s] (s since the start), got {value!r}")
+    raise ValueError(f"must be a window [start_s, end_s] (s since the start), got {shorten(value)}")
 
 
 Outage = Annotated[tuple[float, float], BeforeValidator(_outage)]

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import BeforeValidator, field_validator, model_validator
 
-from strapdown_ros.config.base import Model, ScenarioError, StrictInt, with_preset
+from strapdown_ros.config.base import Model, ScenarioError, StrictInt, shorten, with_preset
 
 if TYPE_CHECKING:  # imported by parameters(): the core model loads scipy.signal
     from strapdown_ros.core.imu_errors import ImuErrorParameters
@@ -190,7 +190,7 @@ Sign = Literal["any", "nonneg", "positive"]
 
 def _number(value: Any, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(key, f"must be a number, got {type(value).__name__} {value!r}")
+        raise ScenarioError(key, f"must be a number, got {type(value).__name__} {shorten(value)}")
     value = float(value)
     if not math.isfinite(value):
         raise ScenarioError(key, f"must be finite, got {value}")
@@ -210,11 +210,11 @@ def _array(value: Any, sign: Sign) -> np.ndarray:
     try:
         a = np.array(numbers, dtype=np.float64)
     except ValueError:
-        raise ValueError(f"ragged nested list {value!r}") from None
+        raise ValueError(f"ragged nested list {shorten(value)}") from None
     if sign == "nonneg" and np.any(a < 0):
-        raise ValueError(f"must be >= 0, got {value!r}")
+        raise ValueError(f"must be >= 0, got {shorten(value)}")
     if sign == "positive" and np.any(a <= 0):
-        raise ValueError(f"must be > 0, got {value!r}")
+        raise ValueError(f"must be > 0, got {shorten(value)}")
     return a
 
 
@@ -241,7 +241,7 @@ def _axes(sign: Sign) -> Callable[[Any], Axes | None]:
             return (float(a),) * 3  # type: ignore[return-value]
         if a.shape == (3,):
             return tuple(float(x) for x in a)  # type: ignore[return-value]
-        raise ValueError(f"must be a number or a list of 3 numbers, got {value!r}")
+        raise ValueError(f"must be a number or a list of 3 numbers, got {shorten(value)}")
 
     return convert
 
@@ -267,7 +267,7 @@ def _misalignment(scalar: bool, sign: Sign) -> Callable[[Any], Matrix3 | None]:
         number = "a number, " if scalar else ""
         raise ValueError(
             f"must be {number}6 values [xy, xz, yx, yz, zx, zy] or a 3x3 matrix with zero "
-            f"diagonal, got {value!r}"
+            f"diagonal, got {shorten(value)}"
         )
 
     return convert
@@ -284,7 +284,7 @@ def _full_matrix(value: Any) -> Matrix3 | None:
         return _matrix(np.diag(a))
     if a.shape == (3, 3):
         return _matrix(a)
-    raise ValueError(f"must be a number, a list of 3 or a 3x3 matrix, got {value!r}")
+    raise ValueError(f"must be a number, a list of 3 or a 3x3 matrix, got {shorten(value)}")
 
 
 #: Per-axis value of any sign, of a value >= 0, of a value > 0.
@@ -302,7 +302,7 @@ def _topic(value: Any) -> Any:
     if value is not None and (
         not isinstance(value, str) or not value.startswith("/") or " " in value
     ):
-        raise ValueError(f"must be an absolute topic name, got {value!r}")
+        raise ValueError(f"must be an absolute topic name, got {shorten(value)}")
     return value
 
 
@@ -358,7 +358,7 @@ class ImuErrorsSpec(Model):
     @classmethod
     def _seed(cls, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ValueError(f"must be an integer >= 0, got {value!r}")
+            raise ValueError(f"must be an integer >= 0, got {shorten(value)}")
         return value
 
     @model_validator(mode="after")

@@ -22,6 +22,7 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    shorten,
 )
 
 __all__ = [
@@ -122,21 +123,21 @@ class NavigatorSpec(Model):
     @classmethod
     def _imu_topic(cls, value: Any) -> Any:
         if not isinstance(value, str) or not value.startswith("/"):
-            raise ValueError(f"must be an absolute topic, got {value!r}")
+            raise ValueError(f"must be an absolute topic, got {shorten(value)}")
         return value
 
     @field_validator("truth_topic", mode="before")
     @classmethod
     def _truth_topic(cls, value: Any) -> Any:
         if not isinstance(value, str) or (value and not value.startswith("/")):
-            raise ValueError(f"must be an absolute topic or empty, got {value!r}")
+            raise ValueError(f"must be an absolute topic or empty, got {shorten(value)}")
         return value
 
     @field_validator("frame_id", mode="before")
     @classmethod
     def _frame_id(cls, value: Any) -> Any:
         if not isinstance(value, str) or not value or " " in value:
-            raise ValueError(f"must be a frame id, got {value!r}")
+            raise ValueError(f"must be a frame id, got {shorten(value)}")
         return value
 
     @field_validator("vertical_damping", mode="before")
@@ -147,7 +148,7 @@ class NavigatorSpec(Model):
         if value is False:
             return None
         if not isinstance(value, Mapping):
-            raise ValueError(f"must be true, false or a mapping, got {value!r}")
+            raise ValueError(f"must be true, false or a mapping, got {shorten(value)}")
         return value
 
     @model_validator(mode="after")
@@ -250,12 +251,12 @@ def resolve_navigator(
         if key not in INPUT_STREAMS:
             names = ", ".join(topics[k] for k in INPUT_STREAMS if k in topics)
             raise ScenarioError(
-                "navigator.imu_topic", f"{imu!r} is not an IMU stream; one of: {names}"
+                "navigator.imu_topic", f"{shorten(imu)} is not an IMU stream; one of: {names}"
             )
         needs = INPUT_STREAMS[key][1]
         if needs is not None and needs not in sections:
             raise ScenarioError(
-                "navigator.imu_topic", f"{imu!r} needs a '{needs}' section in the scenario"
+                "navigator.imu_topic", f"{shorten(imu)} needs a '{needs}' section in the scenario"
             )
     resolved = spec._resolve(topics, gravity_model)
     if sections is not None and resolved.initialization == "scenario" and "initial" not in sections:
@@ -287,12 +288,12 @@ def check_navigator(
         names = ", ".join(topics[k] for k in TRUTH_STREAMS)
         raise ScenarioError(
             "navigator.truth_topic",
-            f"{spec.truth_topic!r} is not an Odometry stream of the scenario; one of: {names} "
-            "(or empty: none)",
+            f"{shorten(spec.truth_topic)} is not an Odometry stream of the scenario; one of: "
+            f"{names} (or empty: none)",
         )
     needs = TRUTH_STREAMS[key]
     if needs is not None and needs not in sections:
         raise ScenarioError(
             "navigator.truth_topic",
-            f"{spec.truth_topic!r} needs a '{needs}' section in the scenario",
+            f"{shorten(spec.truth_topic)} needs a '{needs}' section in the scenario",
         )

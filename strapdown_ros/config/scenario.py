@@ -27,6 +27,7 @@ from strapdown_ros.config.base import (
     ScenarioError,
     StrictBool,
     StrictInt,
+    shorten,
     validate_section,
 )
 from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
@@ -35,6 +36,13 @@ from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resol
 from strapdown_ros.config.tf import TFSpec, check_tf
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
+from strapdown_ros.config.yaml_limits import (
+    MAX_BYTES,
+    LimitError,
+    check_document,
+    load_yaml,
+    too_large,
+)
 
 __all__ = [
     "DEFAULT_FRAMES",
@@ -97,9 +105,9 @@ def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]
             raise ScenarioError(str(key), "unknown key; expected one of: " + ", ".join(defaults))
         if what == "topic" and (not isinstance(name, str) or not name.startswith("/")
                                 or " " in name):  # fmt: skip
-            raise ScenarioError(str(key), f"must be an absolute topic name, got {name!r}")
+            raise ScenarioError(str(key), f"must be an absolute topic name, got {shorten(name)}")
         if what == "frame" and (not isinstance(name, str) or not name or " " in name):
-            raise ScenarioError(str(key), f"must be a frame id, got {name!r}")
+            raise ScenarioError(str(key), f"must be a frame id, got {shorten(name)}")
         out[str(key)] = name
     return out
 
@@ -194,7 +202,7 @@ class Scenario(Model):
     @classmethod
     def _text(cls, value: Any) -> Any:
         if value is not None and not isinstance(value, str):
-            raise ValueError(f"must be a string, got {value!r}")
+            raise ValueError(f"must be a string, got {shorten(value)}")
         return value
 
     @field_validator("rate_hz")
@@ -273,9 +281,13 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
     """
     if not isinstance(document, Mapping):
         raise ScenarioError("", f"the top level must be a mapping, got {type(document).__name__}")
+    try:
+        check_document(document)
+    except LimitError as exc:
+        raise ScenarioError("", f"the scenario {exc.problem}") from None
     for key in document:
         if not isinstance(key, str):
-            raise ScenarioError("", f"keys must be strings, got {key!r}")
+            raise ScenarioError("", f"keys must be strings, got {shorten(key)}")
     if "trajectory" in document and not isinstance(document["trajectory"], Mapping):
         value = document["trajectory"]
         raise ScenarioError("trajectory", f"must be a mapping, got {type(value).__name__}")
@@ -307,9 +319,11 @@ def apply_overrides(document: dict[str, Any], overrides: Iterable[str]) -> dict[
         dotted, text = item.split("=", 1)
         dotted = dotted.strip()
         try:
-            value = yaml.safe_load(text)
+            value = load_yaml(text)
+        except LimitError as exc:
+            raise ScenarioError(dotted, f"the value {exc}") from None
         except yaml.YAMLError as exc:
-            raise ScenarioError(dotted, f"value {text!r} is not valid YAML: {exc}") from None
+            raise ScenarioError(dotted, f"value {shorten(text)} is not valid YAML: {exc}") from None
         parts = _parse_path(dotted)
         node: Any = doc
         for i, part in enumerate(parts[:-1]):
@@ -339,13 +353,20 @@ def read_document(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise ScenarioError("", f"scenario file not found: {path}")
     try:
-        text = path.read_bytes().decode("utf-8")
+        with path.open("rb") as file:  # no further than the limit
+            data = file.read(MAX_BYTES + 1)
+            size = max(len(data), path.stat().st_size)
+        if size > MAX_BYTES:
+            raise ScenarioError("", f"{path} {too_large(size)}")
+        text = data.decode("utf-8")
     except OSError as exc:
         raise ScenarioError("", f"cannot read {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
         raise ScenarioError("", f"{path} is not UTF-8 text (a scenario is a YAML file)") from None
     try:
-        document = yaml.safe_load(text)
+        document = load_yaml(text)
+    except LimitError as exc:
+        raise ScenarioError("", f"{path} {exc}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -376,6 +397,6 @@ def load_scenario(
     document = apply_overrides(read_document(path), overrides)
     if duration_s is not None:
         if not isinstance(duration_s, int | float) or not math.isfinite(duration_s):
-            raise ScenarioError("duration_s", f"must be a finite number, got {duration_s!r}")
+            raise ScenarioError("duration_s", f"must be a finite number, got {shorten(duration_s)}")
         document["duration_s"] = duration_s
     return parse_scenario(document, path.resolve())

@@ -22,6 +22,7 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    shorten,
 )
 
 if TYPE_CHECKING:  # the core models are imported where they are built (scipy.signal)
@@ -86,7 +87,7 @@ class RandomBendingSpec(_Section):
     @classmethod
     def _nonnegative(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
         if any(x < 0 for x in value):
-            raise ValueError(f"must be >= 0, got {list(value)!r}")
+            raise ValueError(f"must be >= 0, got {shorten(list(value))}")
         return value
 
 
@@ -138,7 +139,7 @@ class SweepScanSpec(_Section):
     @classmethod
     def _nonzero(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
         if not any(value):
-            raise ValueError(f"must not be zero, got {list(value)!r}")
+            raise ValueError(f"must not be zero, got {shorten(list(value))}")
         return value
 
     def max_rate_dps(self) -> float:
@@ -242,9 +243,9 @@ class VariationSpec(_Section):
     @classmethod
     def _integer_method(cls, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"must be 1 or 2, got {value!r}")
+            raise ValueError(f"must be 1 or 2, got {shorten(value)}")
         if value not in (1, 2):
-            raise ValueError(f"must be 1 or 2, got {value!r}")
+            raise ValueError(f"must be 1 or 2, got {shorten(value)}")
         return value
 
     # -- build the core model ------------------------------------------------------------------
