@@ -217,7 +217,7 @@ def _validate(args: argparse.Namespace) -> int:
     from strapdown_ros.plan import resolve_plan
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
-    plan = resolve_plan(scenario)
+    plan = resolve_plan(scenario, topics=False)  # the topic plans cannot reject a scenario
     plan.trajectory  # noqa: B018 - built: validates the trajectory's parameters
     print(
         f"{scenario.path}: valid; {scenario.trajectory.kind} trajectory of "

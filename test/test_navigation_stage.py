@@ -17,13 +17,15 @@ import pytest
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.config import DEFAULT_TOPICS, ScenarioError, load_scenario, parse_scenario
-from strapdown_ros.config.base import validate_section
-from strapdown_ros.config.navigator import (
-    NavigatorSpec,
+from strapdown_ros.config import (
+    DEFAULT_TOPICS,
+    ScenarioError,
+    load_scenario,
     navigator_spec,
-    resolve_navigator,
+    parse_scenario,
 )
+from strapdown_ros.config.base import validate_section
+from strapdown_ros.config.navigator import NavigatorSpec, resolve_navigator
 from strapdown_ros.core.navigation.errors import (
     attitude_error_young,
     position_error_ned,

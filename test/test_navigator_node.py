@@ -25,8 +25,7 @@ from node_testing import executable, scenario_without_tf
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
-from strapdown_ros.config import load_scenario
-from strapdown_ros.config.navigator import navigator_spec
+from strapdown_ros.config import load_scenario, navigator_spec
 from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.messages import stream_from_messages

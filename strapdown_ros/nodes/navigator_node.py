@@ -63,7 +63,8 @@ def navigator_section(scenario: Scenario | None, overrides: dict[str, Any]) -> N
     gravity = scenario.gravity_model if scenario is not None else "j2"
     try:
         spec = validate_section(NavigatorSpec, section, "navigator")
-        spec = resolve_navigator(spec, topics, gravity, scenario)  # type: ignore[arg-type]
+        sections = None if scenario is None else scenario.sections()
+        spec = resolve_navigator(spec, topics, gravity, sections)
     except ScenarioError as exc:
         key = exc.key.removeprefix("navigator.")
         root = key.split(".")[0].split("[")[0]

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.aiding import AidingSpec
@@ -20,8 +21,10 @@ from strapdown_ros.config.imu_errors import ImuErrorsSpec
 from strapdown_ros.config.navigator import NavigatorSpec
 from strapdown_ros.config.tf import TFSpec
 from strapdown_ros.core.trajectory.base import Trajectory
-from strapdown_ros.core.trajectory.samples import Samples
 from strapdown_ros.plan.trajectory import build_trajectory
+
+if TYPE_CHECKING:  # the samples module loads numba: only a samples trajectory needs it
+    from strapdown_ros.core.trajectory.samples import Samples
 
 __all__ = ["Plan", "TopicPlan", "variation_end_cycle"]
 

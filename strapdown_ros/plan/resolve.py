@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from strapdown_ros.config import Scenario
-from strapdown_ros.config.navigator import navigator_spec
-from strapdown_ros.config.tf import tf_spec
+from strapdown_ros.config import Scenario, navigator_spec, tf_spec
 from strapdown_ros.config.variation import VariationSpec
 from strapdown_ros.core.trajectory.base import Trajectory
 from strapdown_ros.plan.chain import CHAIN, Topics
@@ -28,12 +26,16 @@ def variation_is_static(spec: VariationSpec | None) -> bool:
     return sines and (bending.random is None or not any(bending.random.sigma_m))
 
 
-def resolve_plan(scenario: Scenario, trajectory: Trajectory | None = None) -> Plan:
+def resolve_plan(
+    scenario: Scenario, trajectory: Trajectory | None = None, *, topics: bool = True
+) -> Plan:
     """The plan of a validated scenario: cycle counts, resolved sections, enabled links and
     every produced topic with its count and stamps. Reads a ``samples`` trajectory's samples
     (no fit); the trajectory model is built only when :attr:`Plan.trajectory` is first read.
     ``trajectory``: a model built elsewhere (e.g. fitted to samples held in memory), used
-    instead of the scenario's own.
+    instead of the scenario's own. ``topics=False``: the counts and sections only, no chain
+    links and no topic plans (``strapdown-sim validate``: every check that can reject the
+    scenario, without importing the stages that plan the topics).
 
     Raises
     ------
@@ -58,11 +60,12 @@ def resolve_plan(scenario: Scenario, trajectory: Trajectory | None = None) -> Pl
         samples=samples,
         variation_static=variation_is_static(scenario.variation),
     )
-    links = [item for item in CHAIN if item.enabled(scenario)]
-    topics: Topics = {}
-    for item in links:
-        topics.update(item.outputs(plan, topics))
-    plan = replace(plan, links=tuple(item.name for item in links), topics=topics)
+    if topics:
+        links = [item for item in CHAIN if item.enabled(scenario)]
+        planned: Topics = {}
+        for item in links:
+            planned.update(item.outputs(plan, planned))
+        plan = replace(plan, links=tuple(item.name for item in links), topics=planned)
     if trajectory is not None:
         plan.__dict__["trajectory"] = trajectory  # the cached_property's value
     return plan

@@ -10,13 +10,16 @@ continuous model; :mod:`strapdown_ros.plan` calls it at most once per process (c
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.trajectory import IncrementsTrajectorySpec, SamplesTrajectorySpec
 from strapdown_ros.core.trajectory.base import Trajectory, TrajectoryError
-from strapdown_ros.core.trajectory.samples import Samples
+
+if TYPE_CHECKING:  # the samples module loads numba: only a samples trajectory needs it
+    from strapdown_ros.core.trajectory.samples import Samples
 
 __all__ = [
     "build_trajectory",

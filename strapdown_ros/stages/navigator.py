@@ -19,13 +19,8 @@ from numpy.typing import NDArray
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
-from strapdown_ros.config import Initial, Scenario
-from strapdown_ros.config.navigator import (
-    INPUT_STREAMS,
-    OUTPUT_TOPICS,
-    NavigatorSpec,
-    navigator_spec,
-)
+from strapdown_ros.config import Initial, Scenario, navigator_spec
+from strapdown_ros.config.navigator import INPUT_STREAMS, OUTPUT_TOPICS, NavigatorSpec
 from strapdown_ros.core.earth import (
     OMEGA_IE_VEC,
     dcm_ecef_to_ned,

@@ -21,8 +21,7 @@ from rosbags.interfaces import QosDurability
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
 from strapdown_ros.bag.writer import DEFAULT_QOS
-from strapdown_ros.config import Scenario
-from strapdown_ros.config.tf import tf_spec
+from strapdown_ros.config import Scenario, tf_spec
 from strapdown_ros.core.frames import Datum, sensor_in_body
 from strapdown_ros.core.variation import OffsetArrays
 from strapdown_ros.messages import (

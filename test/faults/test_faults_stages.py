@@ -107,7 +107,7 @@ def test_events_one_line_each_flood_limited_per_class() -> None:
 
 
 def _navigator(scenario, log):
-    from strapdown_ros.config.navigator import navigator_spec
+    from strapdown_ros.config import navigator_spec
     from strapdown_ros.plan import resolve_plan
     from strapdown_ros.stages.navigator import NavigatorStage
 
