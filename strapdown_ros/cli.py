@@ -446,23 +446,13 @@ def _dispatch(args: argparse.Namespace) -> int:
     # handled by main() like any other (no traceback).
     from strapdown_ros.config import ScenarioError
 
+    commands = {
+        "generate": _generate, "validate": _validate, "run": _run, "replay": _replay,
+        "check": _check, "report": _report, "campaign": _campaign, "bag": _bag,
+    }  # fmt: skip
     try:
-        if args.command == "generate":
-            return _generate(args)
-        if args.command == "validate":
-            return _validate(args)
-        if args.command == "run":
-            return _run(args)
-        if args.command == "replay":
-            return _replay(args)
-        if args.command == "check":
-            return _check(args)
-        if args.command == "report":
-            return _report(args)
-        if args.command == "campaign":
-            return _campaign(args)
-        if args.command == "bag":
-            return _bag(args)
+        if args.command in commands:
+            return commands[args.command](args)
     except ScenarioError as exc:
         print(f"strapdown-sim {args.command}: invalid scenario: {exc}", file=sys.stderr)
         return 2
