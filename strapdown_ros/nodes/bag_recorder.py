@@ -250,7 +250,7 @@ class BagRecorder(SignalStop, Node):
 
         def on_message(payload: bytes) -> None:
             # The node's clock is the system clock unless use_sim_time is on: time.time_ns()
-            # then gives the same receive time for 0.05 µs instead of ~2 µs (clock.now()).
+            # then gives the same receive time at a fraction of clock.now()'s cost.
             handler(payload, clock.now().nanoseconds if sim[0] else time_ns())
 
         derive, tf_handlers = self._derive, self._derived_tf

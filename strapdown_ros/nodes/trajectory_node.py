@@ -266,7 +266,7 @@ class TrajectoryNode(Node):
                     if gate is not None and counts[topic] >= gate.limits[topic]:
                         # The pace resumes from here: a stall is not caught up in a burst.
                         pacer.start += gate.wait(topic, counts[topic], spin, ok)
-                    # SIGINT / SIGTERM (rclpy's signal handlers); ok() costs ~2 µs: not every time
+                    # SIGINT / SIGTERM (rclpy's signal handlers); ok() is not free: every 64th
                     if not counts[topic] & 63 and not ok():
                         raise ExternalShutdownException()
                     if paced:
