@@ -114,21 +114,23 @@ class Child:
 
 
 class Children:
-    """The children of one run, in start order: each a node started with ``-p`` parameters.
+    """The children of a run writing ``out``, in start order: nodes started with ``-p``
+    parameters in ROS domain ``domain`` (:func:`child_env`), their logs in :func:`log_dir`.
 
-    ``common`` parameters are given to every child; with ``profile`` and :data:`PROFILE_ENV`
-    set, each child runs under cProfile.
+    ``domain_id`` None: :func:`private_domain`. ``common`` parameters are given to every
+    child; with ``profile`` and :data:`PROFILE_ENV` set, each child runs under cProfile.
     """
 
     def __init__(
         self,
-        env: dict[str, str],
-        log_dir: Path,
+        out: Path,
+        domain_id: int | None = None,
         common: Sequence[str] = (),
         profile: bool = False,
     ) -> None:
-        self.env = env
-        self.log_dir = log_dir
+        self.domain = private_domain() if domain_id is None else int(domain_id)
+        self.env = child_env(self.domain)
+        self.log_dir = log_dir(out)
         self.common = list(common)
         self.profile = profile
         self.started: list[Child] = []

@@ -12,16 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from strapdown_ros.config import load_scenario
-from strapdown_ros.pipeline.processes import (
-    Child,
-    Children,
-    PipelineError,
-    check_out,
-    child_env,
-    list_param,
-    log_dir,
-    private_domain,
-)
+from strapdown_ros.pipeline.processes import Child, Children, PipelineError, check_out, list_param
 from strapdown_ros.pipeline.result import ReplayResult
 from strapdown_ros.pipeline.run import RECORDER_GRACE_S, STARTUP_TIMEOUT_S, say_to_stderr
 
@@ -74,11 +65,10 @@ def replay_into_navigator(
     )  # fmt: skip
     out_topics = {k: topics[v] for k, v in OUTPUT_TOPICS.items()}
     recorded = [t for k, t in out_topics.items() if settings.truth_topic or not k.startswith("e")]
-    domain = private_domain() if domain_id is None else int(domain_id)
-    children = Children(child_env(domain), log_dir(out))
+    children = Children(out, domain_id)
     say = say_to_stderr("replay", progress)
     try:
-        say(f"ROS_DOMAIN_ID={domain}; logs in {children.log_dir}")
+        say(f"ROS_DOMAIN_ID={children.domain}; logs in {children.log_dir}")
         recorder = children.start(
             "bag_recorder", f"output:={out}", "stop_when_done:=true",
             f"force:={str(force).lower()}", list_param("topics", recorded),

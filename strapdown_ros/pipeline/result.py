@@ -42,6 +42,11 @@ class PipelineResult:
             if self.counts.get(t, 0) != n
         }
 
+    @property
+    def ok(self) -> bool:
+        """Every expected topic has its count (zero loss)."""
+        return not self.lost
+
     def format(self) -> str:
         lines = [
             f"bag:       {self.out}",
@@ -108,6 +113,11 @@ class ReplayResult:
     mismatches: dict[str, str] = field(default_factory=dict)
     reference: str = ""
     elapsed_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """Every recorded topic is identical to the offline navigator's."""
+        return not self.mismatches
 
     def format(self) -> str:
         lines = [f"bag:       {self.out}", f"compared with: {self.reference}"]

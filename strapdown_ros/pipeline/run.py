@@ -21,10 +21,7 @@ from strapdown_ros.pipeline.processes import (
     Children,
     PipelineError,
     check_out,
-    child_env,
     list_param,
-    log_dir,
-    private_domain,
 )
 from strapdown_ros.pipeline.result import PipelineResult, read_trajectory_summary
 from strapdown_ros.plan import Plan, resolve_plan
@@ -86,17 +83,16 @@ def run_pipeline(
     if timeout_s is None:
         data_s = plan.duration_s
         timeout_s = (data_s / rate_factor if rate_factor > 0 else 5 * data_s) + 120.0
-    domain = private_domain() if domain_id is None else int(domain_id)
     common = [f"scenario:={Path(scenario_path).resolve()}"]
     if overrides:
         common.append(list_param("overrides", overrides))
     if duration_s is not None:
         common.append(f"duration_s:={float(duration_s)}")
-    children = Children(child_env(domain), log_dir(out), common, profile=True)
+    children = Children(out, domain_id, common, profile=True)
     run = _LiveRun(plan, out, storage, force, rate_factor, flow_control, children,
                    say_to_stderr("run", progress))  # fmt: skip
     try:
-        run.say(f"ROS_DOMAIN_ID={domain}; logs in {children.log_dir}")
+        run.say(f"ROS_DOMAIN_ID={children.domain}; logs in {children.log_dir}")
         source = run.start()
         run.wait(source, timeout_s)
     except BaseException:
@@ -105,7 +101,7 @@ def run_pipeline(
     finally:
         cpu = children.cpu_s()
         children.reap()
-    return run.result(t_start, domain, cpu)
+    return run.result(t_start, children.domain, cpu)
 
 
 @dataclass
