@@ -121,9 +121,10 @@ class _LiveRun:
 
     def start(self) -> Child:
         """Start the recorder, then the chain's nodes downstream first (each waits for its
-        subscribers before it subscribes), the source last; return the source."""
+        subscribers before it subscribes), the source (first in chain order) last; return the
+        source."""
         nodes, self.subscriptions = live_graph(self.plan)
-        *downstream, source = nodes
+        source, *downstream = nodes
         self.children.start("bag_recorder", *self._recorder_params())
         node_params = ["qos_depth:=10000"]
         if self.flow_control:
