@@ -113,8 +113,8 @@ def _navigator(scenario, log):
 
     spec = navigator_spec(scenario)
     return NavigationStage.for_scenario(
-        scenario, spec, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), info=log, warn=log,
-        error=log,
+        scenario, spec, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), info=log,
+        warn=log, error=log,
     )  # fmt: skip
 
 
