@@ -232,7 +232,7 @@ def sweep_orientation(
 
 
 def _fmt_s(value: float | None) -> str:
-    return "never" if value is None else f"{value:.0f}"
+    return "never" if value is None else f"{value:.1f}"
 
 
 def format_table(table: dict[str, Any]) -> str:
