@@ -99,7 +99,7 @@ def analytic_inputs(t):
         lat, lon = path(t)
         tracks.append(yn.FrameTrack(t, lat, lon, *rates(path, t)))
     fine = np.arange(t[0], t[-1] + 0.5, 1.0)
-    return yn.OrientationInputs(tracks[0], tracks[1], fine, drift_angle(fine), interpolation="hermite")
+    return yn.OrientationInputs(*tracks, fine, drift_angle(fine), interpolation="hermite")
 
 
 def independent_frames(theta0, t_eval):
