@@ -18,7 +18,13 @@ from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic, geodetic
 from strapdown_ros.core.young_nonlinear import FrameTrack
 from strapdown_ros.messages import imu_increments, odometry_state
 
-__all__ = ["ImuRecord", "LocalLevelStates", "NavigatorRecord", "read_navigator_record"]
+__all__ = [
+    "ImuRecord",
+    "LocalLevelStates",
+    "NavigatorRecord",
+    "local_level_states",
+    "read_navigator_record",
+]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -92,7 +98,8 @@ class NavigatorRecord:
         return self.navigator.t
 
 
-def _states(odom: object, t0_ns: int) -> LocalLevelStates:
+def local_level_states(odom: object, t0_ns: int) -> LocalLevelStates:
+    """Odometry messages as local-level states, times from ``t0_ns``."""
     state = odometry_state(odom)  # type: ignore[arg-type]
     lat, lon, alt = ecef_to_geodetic(state.r_e)
     c_e_n = dcm_ecef_to_ned(lat, lon)
@@ -125,8 +132,8 @@ def read_navigator_record(
     contents = read_bag(bag, topics)
     nav_odom = contents[navigator_topic]
     t0 = int(nav_odom.stamps_ns[0])  # type: ignore[attr-defined]
-    nav = _states(nav_odom, t0)
-    truth_all = _states(contents[truth_topic], t0)
+    nav = local_level_states(nav_odom, t0)
+    truth_all = local_level_states(contents[truth_topic], t0)
     keep = np.flatnonzero(truth_all.stamps_ns >= t0)
     truth = truth_all.rows(keep)
     index = np.searchsorted(truth.stamps_ns, nav.stamps_ns)
