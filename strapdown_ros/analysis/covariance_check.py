@@ -29,7 +29,7 @@ from scipy.stats import chi2
 from strapdown_ros.analysis.navigator_record import local_level_states
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import Scenario, load_scenario
-from strapdown_ros.config.navigator import navigator_spec
+from strapdown_ros.config.scenario import navigator_spec
 from strapdown_ros.core.covariance import (
     PropagationSteps,
     VerticalDampingGains,

@@ -41,8 +41,7 @@ from strapdown_ros.analysis.orientation import (
     compare_orientation,
 )
 from strapdown_ros.config import Scenario, load_scenario
-from strapdown_ros.config.navigator import navigator_spec
-from strapdown_ros.config.scenario import apply_overrides, read_document
+from strapdown_ros.config.scenario import apply_overrides, navigator_spec, read_document
 from strapdown_ros.core.earth import geodetic_to_ecef
 
 __all__ = [
