@@ -204,8 +204,7 @@ def test_gauss_markov_bias_is_stationary_and_integrates():
 def test_prediction_against_a_short_campaign(tmp_path):
     """24 runs of default.yaml for 120 s (navigator free inertial on the tactical measured
     IMU): σ_ens/σ_pred inside the χ²(24) 95 % band at ≥ 90 % of the epochs after 30 s for every
-    component, time-averaged ratio within 0.2 of 1 (24 runs: the ratio's own σ ≈ 0.14).
-    A sign flip of the f × φ coupling or of the accelerometer input drives it out."""
+    component, time-averaged ratio within 0.2 of 1 (24 runs: the ratio's own σ ≈ 0.14)."""
     from strapdown_ros.analysis import covariance_check as cc
     from strapdown_ros.campaign import run_campaign
     from strapdown_ros.generate import generate_dataset
