@@ -34,7 +34,7 @@ from strapdown_ros.config.base import (
 from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
 from strapdown_ros.config.initial import Initial
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resolve_navigator
-from strapdown_ros.config.tf import TFSpec, check_tf
+from strapdown_ros.config.tf import TFSpec, check_tf, sensor_frames
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
 from strapdown_ros.config.yaml_limits import (
@@ -299,10 +299,13 @@ class Scenario(Model):
         navigator = navigator_spec(self)
         check_navigator(navigator, topics, self.sections())
         check_variation(self.variation, self.rate_hz)
+        frames = self.recording.frames
         check_tf(
             tf_spec(self),
             self.period_ns,
             None if navigator is None else self.period_ns * navigator.n,
+            sensor_frames(self.aiding, frames["reference_imu"]),
+            frames,
         )
         return self
 
