@@ -46,6 +46,52 @@ def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_recording_args(parser: argparse.ArgumentParser) -> None:
+    """What the bag gets (generate, run): MCAP chunk compression and the topic selection, as
+    ``ros2 bag record`` takes them; each sets its ``recording`` key (docs/recording.md)."""
+    parser.add_argument(
+        "--compression", choices=("none", "zstd", "lz4"), default=None,
+        help="MCAP chunk compression (sets recording.compression; default: the scenario's, "
+        "else none)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--topics", nargs="+", default=[], metavar="TOPIC",
+        help="write only these topics (with --regex: these and the matching ones; sets "
+        "recording.include)",
+    )  # fmt: skip
+    _add_repeatable(
+        parser, "--regex", "RE", "write only the topics whose whole name matches RE "
+        "(repeatable; sets recording.include)", dest="regex",
+    )  # fmt: skip
+    parser.add_argument(
+        "--exclude-topics", nargs="+", default=[], metavar="TOPIC",
+        help="do not write these topics (sets recording.exclude)",
+    )  # fmt: skip
+    _add_repeatable(
+        parser, "--exclude-regex", "RE", "do not write the topics whose whole name matches RE "
+        "(repeatable; sets recording.exclude)", dest="exclude_regex",
+    )  # fmt: skip
+
+
+def _recording_overrides(args: argparse.Namespace) -> list[str]:
+    """``--set`` overrides of ``recording`` from :func:`_add_recording_args`' options (after
+    the user's own ``--set``: the options win)."""
+    import json
+
+    from strapdown_ros.bag.selection import name_pattern
+
+    out = []
+    if args.compression is not None:
+        out.append(f"recording.compression={args.compression}")
+    include = [name_pattern(t) for t in args.topics] + list(args.regex)
+    exclude = [name_pattern(t) for t in args.exclude_topics] + list(args.exclude_regex)
+    if include:
+        out.append(f"recording.include={json.dumps(include)}")
+    if exclude:
+        out.append(f"recording.exclude={json.dumps(exclude)}")
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``strapdown-sim``."""
     parser = argparse.ArgumentParser(
@@ -65,6 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="rosbag2 storage format (default: the scenario's recording.storage, else mcap)",
     )
+    _add_recording_args(gen)
     gen.add_argument("--force", action="store_true", help="overwrite an existing output directory")
     gen.add_argument("--quiet", action="store_true", help="no progress bar and no summary")
 
@@ -83,6 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scenario_args(run)
     run.add_argument("--out", required=True, help="output bag directory")
     run.add_argument("--storage", choices=("mcap", "sqlite3"), default=None)
+    _add_recording_args(run)
     run.add_argument("--force", action="store_true", help="overwrite an existing output")
     run.add_argument(
         "--rate-factor", type=float, default=1.0,
@@ -227,7 +275,8 @@ def _generate(args: argparse.Namespace) -> int:
     from strapdown_ros.config import load_scenario
     from strapdown_ros.generate import generate_dataset
 
-    scenario = load_scenario(args.scenario, args.overrides, args.duration)
+    overrides = [*args.overrides, *_recording_overrides(args)]
+    scenario = load_scenario(args.scenario, overrides, args.duration)
     try:
         summary = generate_dataset(
             scenario,
@@ -314,8 +363,8 @@ def _run(args: argparse.Namespace) -> int:
     from strapdown_ros.pipeline import run_pipeline
 
     return _live("run", lambda: run_pipeline(
-        args.scenario, args.out, overrides=args.overrides, duration_s=args.duration,
-        storage=args.storage, force=args.force,
+        args.scenario, args.out, overrides=[*args.overrides, *_recording_overrides(args)],
+        duration_s=args.duration, storage=args.storage, force=args.force,
         rate_factor=0.0 if args.unpaced else args.rate_factor,
         domain_id=args.domain_id, timeout_s=args.timeout,
         flow_control={"auto": None, "on": True, "off": False}[args.flow_control],
