@@ -314,9 +314,57 @@ def _run(args: argparse.Namespace) -> int:
     ))  # fmt: skip
 
 
-def _replay(args: argparse.Namespace) -> int:
-    from strapdown_ros.pipeline import replay_into_navigator
+def _replay_problem(bag: str, imu_topic: str, truth_topic: str) -> list[str]:
+    """Why ``bag`` cannot feed a navigator on ``imu_topic`` (+ ``truth_topic``), with what the
+    bag has; empty when it can. Reads only those topics."""
+    from strapdown_ros.bag.reader import check_bag, read_bag
+    from strapdown_ros.checks import is_ecef
+    from strapdown_ros.checks.foreign import capability_lines
+    from strapdown_ros.messages import odometry_state
 
+    info, _ = check_bag(bag)  # BagReadError: reported by the dispatcher
+    entries = info.get("topics_with_message_count") or []
+    types = {e["topic_metadata"]["name"]: e["topic_metadata"]["type"] for e in entries}
+    custom = {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+    wanted = {imu_topic: "sensor_msgs/msg/Imu"}
+    if truth_topic:
+        wanted[truth_topic] = "nav_msgs/msg/Odometry"
+    problems = []
+    for topic, ty in wanted.items():
+        if topic not in types:
+            problems.append(f"the bag has no topic {topic} ({ty})")
+        elif types[topic] != ty:
+            problems.append(f"{topic} is a {types[topic]}, not a {ty}")
+    if not problems and truth_topic:
+        truth = read_bag(bag, [truth_topic]).topics[truth_topic].fields
+        if truth is None or not is_ecef(odometry_state(truth).r_e):  # type: ignore[arg-type]
+            frame = getattr(truth, "frame_id", "?")
+            problems.append(
+                f"{truth_topic} (frame {frame!r}) has no ECEF positions: the navigator "
+                "initializes from and compares with an ECEF truth (frame `earth`)"
+            )
+    if not problems:
+        return []
+    return problems + capability_lines(custom, types)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    """Replay a bag into a live navigator; exit 2 (nothing started) when the bag lacks the
+    navigator's input streams."""
+    from strapdown_ros.pipeline import replay_into_navigator
+    from strapdown_ros.pipeline.replay import _navigator_settings
+
+    _, _, nav = _navigator_settings(args.scenario, args.overrides)
+    problems = _replay_problem(args.bag, str(nav.imu_topic), str(nav.truth_topic or ""))
+    if problems:
+        print(
+            f"strapdown-sim replay: {args.bag} cannot feed navigator_node (imu_topic "
+            f"{nav.imu_topic}, truth_topic {nav.truth_topic or 'none'}; choose them with "
+            "--scenario and its navigator section):\n"
+            + "\n".join(f"  {p}" for p in problems),
+            file=sys.stderr,
+        )
+        return 2
     return _live("replay", lambda: replay_into_navigator(
         args.bag, args.out, scenario_path=args.scenario, overrides=args.overrides,
         rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
@@ -351,10 +399,32 @@ def _bag(args: argparse.Namespace) -> int:
             print(repair_bag(args.bag, force=args.force).format())
         else:
             print(bag_info(args.bag))
+            for line in _bag_capabilities(args.bag):
+                print(f"  {line}")
     except BagRepairError as exc:
         print(f"strapdown-sim bag {args.bag_command}: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def _bag_capabilities(path: str) -> list[str]:
+    """``bag info``'s statement of what check, report and replay do with a bag that reads
+    (from its metadata; nothing for a bag that does not read: bag info says why)."""
+    from strapdown_ros.bag.reader import BagReadError, check_bag
+    from strapdown_ros.checks.foreign import capability_lines, is_foreign
+
+    try:
+        info, _ = check_bag(path)
+        entries = info.get("topics_with_message_count") or []
+        types = {e["topic_metadata"]["name"]: e["topic_metadata"]["type"] for e in entries}
+        custom = {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+    except (BagReadError, KeyError, TypeError, AttributeError):
+        return []
+    if not is_foreign(custom):
+        model = custom.get("gravity_model", "not recorded")
+        return [f"strapdown_ros: written by strapdown_ros (scenario {custom.get('scenario', '?')}"
+                f", gravity model {model}): check, report and replay apply"]  # fmt: skip
+    return ["strapdown_ros:"] + [f"  {line}" for line in capability_lines(custom, types)]
 
 
 def _campaign(args: argparse.Namespace) -> int:
