@@ -271,13 +271,13 @@ def plot_imu(bag: BagData, path: Path) -> Path:
         frame = f", frame {d.frame_id}" if d.frame_id else ""
         axes[0, col].set(title=f"{d.topic} ({kind}{frame}): angular rate Δα/T",
                          ylabel="angular rate [deg/s]")  # fmt: skip
-        axes[0, col].title.set_fontsize(10)
-        axes[1, col].title.set_fontsize(10)
         axes[1, col].set(
             title=f"{d.topic} ({kind}): specific force Δv/T",
             ylabel="specific force [m/s²]",
             xlabel=_time_label(bag),
         )
+        for row in range(2):
+            axes[row, col].title.set_fontsize(10)
         for row in range(2):
             axes[row, col].grid(alpha=0.3)
             axes[row, col].legend(fontsize=8, loc="best", ncol=3)
