@@ -122,7 +122,11 @@ def build_parser() -> argparse.ArgumentParser:
         "check", help="verify the docs/interface.md §3 exactness rule on a bag from disk"
     )
     chk.add_argument("bag", help="bag directory written by generate or run")
-    chk.add_argument("--gravity-model", default="j2", help="gravitation model of the streams")
+    chk.add_argument(
+        "--gravity-model", choices=("j2", "spherical"), default=None,
+        help="gravitation model to verify with (default: the one in the bag's metadata, "
+        "else j2)",
+    )  # fmt: skip
 
     run = sub.add_parser(
         "run", help="run the live ROS 2 pipeline as separate processes and record a bag"
@@ -181,6 +185,11 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip the docs/interface.md §3 re-check of the streams",
     )
+    rep.add_argument(
+        "--gravity-model", choices=("j2", "spherical"), default=None,
+        help="gravitation model of the re-check (default: the one in the bag's metadata, "
+        "else j2)",
+    )  # fmt: skip
 
     bag = sub.add_parser("bag", help="bag utilities: repair an interrupted recording, info")
     bag_sub = bag.add_subparsers(dest="bag_command", metavar="BAG_COMMAND", required=True)
@@ -310,35 +319,51 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _check(args: argparse.Namespace) -> int:
+    """Verify docs/interface.md §3 on every Imu/Odometry pair of a bag, with the gravity model
+    the bag was generated with. Exit 0: every verifiable pair within the tolerances; 1: a
+    pair out of them (DEFECT); 2: nothing in the bag can be verified (another tool's bag)."""
     from strapdown_ros.bag.reader import read_bag
-    from strapdown_ros.core.exactness import stream_residuals
-    from strapdown_ros.messages import stream_from_messages
+    from strapdown_ros.checks import check_settings, check_streams
+    from strapdown_ros.checks.foreign import capability_lines
+    from strapdown_ros.checks.settings import SettingsError
 
     contents = read_bag(args.bag)
-    status = 0
-    checked = 0
-    for topic, data in contents.topics.items():
-        if not topic.endswith("/imu") or data.msgtype != "sensor_msgs/msg/Imu":
+    try:
+        settings = check_settings(contents.custom_data, args.gravity_model)
+    except SettingsError as exc:
+        print(f"strapdown-sim check: {exc}", file=sys.stderr)
+        return 2
+    print(f"{args.bag}: {settings.describe()}")
+    verdicts = check_streams(contents, settings.gravity_model)
+    for v in verdicts:
+        if not v.checked:
+            print(f"{v.pair}: not checked: {v.reason}")
             continue
-        odom_topic = topic[: -len("imu")] + "odom"
-        if odom_topic not in contents.topics:
-            continue
-        stream = stream_from_messages(
-            data.fields, contents.topics[odom_topic].fields, args.gravity_model
-        )
-        res = stream_residuals(stream)
-        ok = res.within_spec()
-        status |= 0 if ok else 1
-        checked += 1
+        res = v.residuals
+        assert res is not None
+        hint = "" if settings.from_strapdown else (
+            "; the bag has no strapdown_ros metadata: check the gravity model "
+            "(--gravity-model) and where the bag comes from"
+        )  # fmt: skip
         print(
-            f"{topic} + {odom_topic}: {stream.cycles} cycles, max residual attitude "
+            f"{v.pair}: {v.cycles} cycles, max residual attitude "
             f"{res.max_attitude:.2e} rad, velocity {res.max_velocity:.2e} m/s, position "
-            f"{res.max_position:.2e} m: {'ok' if ok else 'DEFECT (docs/interface.md §3)'}"
+            f"{res.max_position:.2e} m: "
+            + ("ok" if v.ok else f"DEFECT (docs/interface.md §3{hint})")
         )
+    checked = [v for v in verdicts if v.checked]
     if not checked:
-        print(f"{args.bag}: no Imu/Odometry topic pair to check", file=sys.stderr)
-        return 1
-    return status
+        types = {t: d.msgtype for t, d in contents.topics.items()}
+        for line in capability_lines(contents.custom_data, types):
+            print(f"  {line}")
+        print(
+            f"strapdown-sim check: nothing to verify in {args.bag}: "
+            + ("no Imu/Odometry pair with the stream layout" if verdicts
+               else "no `P/imu` + `P/odom` topic pair"),
+            file=sys.stderr,
+        )  # fmt: skip
+        return 2
+    return 0 if all(v.ok for v in checked) else 1
 
 
 def _live(command: str, call: Callable[[], Any]) -> int:
@@ -371,9 +396,57 @@ def _run(args: argparse.Namespace) -> int:
     ))  # fmt: skip
 
 
-def _replay(args: argparse.Namespace) -> int:
-    from strapdown_ros.pipeline import replay_into_navigator
+def _replay_problem(bag: str, imu_topic: str, truth_topic: str) -> list[str]:
+    """Why ``bag`` cannot feed a navigator on ``imu_topic`` (+ ``truth_topic``), with what the
+    bag has; empty when it can. Reads only those topics."""
+    from strapdown_ros.bag.reader import check_bag, read_bag
+    from strapdown_ros.checks import is_ecef
+    from strapdown_ros.checks.foreign import capability_lines
+    from strapdown_ros.messages import odometry_state
 
+    info, _ = check_bag(bag)  # BagReadError: reported by the dispatcher
+    entries = info.get("topics_with_message_count") or []
+    types = {e["topic_metadata"]["name"]: e["topic_metadata"]["type"] for e in entries}
+    custom = {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+    wanted = {imu_topic: "sensor_msgs/msg/Imu"}
+    if truth_topic:
+        wanted[truth_topic] = "nav_msgs/msg/Odometry"
+    problems = []
+    for topic, ty in wanted.items():
+        if topic not in types:
+            problems.append(f"the bag has no topic {topic} ({ty})")
+        elif types[topic] != ty:
+            problems.append(f"{topic} is a {types[topic]}, not a {ty}")
+    if not problems and truth_topic:
+        truth = read_bag(bag, [truth_topic]).topics[truth_topic].fields
+        if truth is None or not is_ecef(odometry_state(truth).r_e):  # type: ignore[arg-type]
+            frame = getattr(truth, "frame_id", "?")
+            problems.append(
+                f"{truth_topic} (frame {frame!r}) has no ECEF positions: the navigator "
+                "initializes from and compares with an ECEF truth (frame `earth`)"
+            )
+    if not problems:
+        return []
+    return problems + capability_lines(custom, types)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    """Replay a bag into a live navigator; exit 2 (nothing started) when the bag lacks the
+    navigator's input streams."""
+    from strapdown_ros.pipeline import replay_into_navigator
+    from strapdown_ros.pipeline.replay import _navigator_settings
+
+    _, _, nav = _navigator_settings(args.scenario, args.overrides)
+    problems = _replay_problem(args.bag, str(nav.imu_topic), str(nav.truth_topic or ""))
+    if problems:
+        print(
+            f"strapdown-sim replay: {args.bag} cannot feed navigator_node (imu_topic "
+            f"{nav.imu_topic}, truth_topic {nav.truth_topic or 'none'}; choose them with "
+            "--scenario and its navigator section):\n"
+            + "\n".join(f"  {p}" for p in problems),
+            file=sys.stderr,
+        )
+        return 2
     return _live("replay", lambda: replay_into_navigator(
         args.bag, args.out, scenario_path=args.scenario, overrides=args.overrides,
         rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
@@ -385,8 +458,9 @@ def _report(args: argparse.Namespace) -> int:
 
     try:
         result = write_report(
-            args.bag, args.out, compare=args.compare, exactness=not args.no_exactness
-        )
+            args.bag, args.out, compare=args.compare, exactness=not args.no_exactness,
+            gravity_model=args.gravity_model,
+        )  # fmt: skip
     except ReportError as exc:
         print(f"strapdown-sim report: {exc}", file=sys.stderr)
         return 1
@@ -407,10 +481,32 @@ def _bag(args: argparse.Namespace) -> int:
             print(repair_bag(args.bag, force=args.force).format())
         else:
             print(bag_info(args.bag))
+            for line in _bag_capabilities(args.bag):
+                print(f"  {line}")
     except BagRepairError as exc:
         print(f"strapdown-sim bag {args.bag_command}: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def _bag_capabilities(path: str) -> list[str]:
+    """``bag info``'s statement of what check, report and replay do with a bag that reads
+    (from its metadata; nothing for a bag that does not read: bag info says why)."""
+    from strapdown_ros.bag.reader import BagReadError, check_bag
+    from strapdown_ros.checks.foreign import capability_lines, is_foreign
+
+    try:
+        info, _ = check_bag(path)
+        entries = info.get("topics_with_message_count") or []
+        types = {e["topic_metadata"]["name"]: e["topic_metadata"]["type"] for e in entries}
+        custom = {str(k): str(v) for k, v in (info.get("custom_data") or {}).items()}
+    except (BagReadError, KeyError, TypeError, AttributeError):
+        return []
+    if not is_foreign(custom):
+        model = custom.get("gravity_model", "not recorded")
+        return [f"strapdown_ros: written by strapdown_ros (scenario {custom.get('scenario', '?')}"
+                f", gravity model {model}): check, report and replay apply"]  # fmt: skip
+    return ["strapdown_ros:"] + [f"  {line}" for line in capability_lines(custom, types)]
 
 
 def _campaign(args: argparse.Namespace) -> int:
