@@ -98,11 +98,15 @@ class StaticFrames:
         self.earth = earth_frame
         self.edges: dict[str, tuple[str, F64, F64]] = {}
         if tf is not None:
-            for i in range(len(tf)):
-                for j, (parent, child) in enumerate(zip(tf.frame_ids, tf.child_frame_ids,
-                                                        strict=True)):  # fmt: skip
-                    c = dcm_from_quat_ros(np.asarray(tf.rotation[i, j]))
-                    self.edges[child] = (parent, np.asarray(tf.translation[i, j], float), c)
+            self.add(tf)
+
+    def add(self, tf: TFMessageFields) -> None:
+        """Add the transforms of a ``/tf_static`` topic (a later one for a child replaces)."""
+        pairs = list(enumerate(zip(tf.frame_ids, tf.child_frame_ids, strict=True)))
+        for i in range(len(tf)):
+            for j, (parent, child) in pairs:
+                c = dcm_from_quat_ros(np.asarray(tf.rotation[i, j]))
+                self.edges[child] = (parent, np.asarray(tf.translation[i, j], float), c)
 
     def transform(self, frame: str, to: str) -> tuple[F64, F64]:
         """``(p, C)`` of ``frame`` in ``to``: origin ``p`` (m, ``to`` axes), ``C_frame^to``.

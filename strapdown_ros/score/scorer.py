@@ -264,6 +264,11 @@ def score_estimate(
                  truth.t0_ns)  # fmt: skip
 
 
+def _tf_static(bag: BagContents) -> Any:
+    tf = bag.topics.get(TF_STATIC)
+    return tf.fields if tf is not None and tf.fields is not None else None
+
+
 def score_bag(
     bag: str | os.PathLike[str],
     topic: str,
@@ -289,8 +294,9 @@ def score_bag(
     if truth_topic not in truth_bag.topics:
         raise ScoreError(f"truth topic {truth_topic!r} not in bag {bag}")
     est_bag = truth_bag if estimate_bag is None else read_bag(estimate_bag, None)
-    tf = truth_bag.topics.get(TF_STATIC)
-    frames = StaticFrames(tf.fields if tf is not None and tf.fields is not None else None)
+    frames = StaticFrames(_tf_static(truth_bag))
+    if est_bag is not truth_bag and _tf_static(est_bag) is not None:
+        frames.add(_tf_static(est_bag))  # the user's frames (e.g. base_link -> antenna)
     odom = truth_bag[truth_topic]
     st = odometry_state(odom)  # type: ignore[arg-type]
     trajectory, t0_ns = None, int(st.stamps_ns[0])

@@ -5,7 +5,8 @@ regenerated through Savage 2020 Method 2: at even cycles it equals the model to 
 cycles it is Method 2's integrated state (measured on a 20 s car drive: up to 6e-5 m/s and
 3e-9 m from the model), the one the increments obey exactly (§3). The scorer's truth is
 
-* at a truth stamp: the published sample itself (bit for bit);
+* at a truth stamp: the published sample itself (bit for bit); the body rate (for lever arms)
+  is the model's instantaneous one, the published ``twist.angular`` being a cycle's mean;
 * between truth stamps: the model at the stamp, ``x(t) = x_model(t) + δ(t)``, where
   ``δ = x_published − x_model`` at the two neighbouring truth stamps is interpolated linearly
   (position and velocity in ECEF, the attitude as a rotation vector in ECEF axes). The shape
@@ -194,7 +195,9 @@ class ReferenceTruth:
             r, v, c, w = self._hermite(k, frac)
         if np.any(on_grid):
             g, kg = on_grid, k_grid[on_grid]
-            r[g], v[g], c[g], w[g] = self.r_e[kg], self.v_e[kg], self.c_b_e[kg], self.omega_eb_b[kg]
+            r[g], v[g], c[g] = self.r_e[kg], self.v_e[kg], self.c_b_e[kg]
+            if self.trajectory is None:  # the published rate: the mean of the cycle ending here
+                w[g] = self.omega_eb_b[kg]
         return PointTruth(stamps, r, v, c, w)
 
     def _model_between(self, k: I64, frac: F64, t: F64) -> tuple[F64, F64, F64, F64]:
