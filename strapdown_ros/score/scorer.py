@@ -106,7 +106,8 @@ def estimate_point(
     """
     if lever_arm is not None or mounting_rph_deg is not None:
         lever = np.asarray(lever_arm if lever_arm is not None else (0, 0, 0), dtype=np.float64)
-        rph = np.radians(np.asarray(mounting_rph_deg or (0, 0, 0), dtype=np.float64))
+        rph = np.radians(np.asarray((0, 0, 0) if mounting_rph_deg is None else mounting_rph_deg,
+                                    dtype=np.float64))
         if lever.shape != (3,) or rph.shape != (3,):
             raise ScoreError("lever arm and mounting need 3 values each")
         return EstimatePoint(lever, dcm_from_euler(*rph), "given", frame)

@@ -92,7 +92,9 @@ class PointTruth:
 
 def model_state(trajectory: Trajectory, t: F64) -> tuple[F64, F64, F64, F64]:
     """``(r_e, v_e, c_b_e, ω_eb^B)`` of the trajectory model at ``t`` (s since t0); the rate
-    by a central difference of the attitude over ±:data:`RATE_STEP_S` (error ~1e-12 rad/s)."""
+    by a central difference of the attitude over ±:data:`RATE_STEP_S` (truncation error
+    2e-9 rad/s in the 1 s heading-rate ramps of a car, measured against steps 1e-5 ... 3e-4 s;
+    rounding about as much)."""
     t = np.asarray(t, dtype=np.float64)
     h = RATE_STEP_S
     lo = np.clip(t - h, 0.0, trajectory.duration)
