@@ -10,7 +10,20 @@ Definitions: docs/score.md.
 
 from __future__ import annotations
 
-from strapdown_ros.score.estimate import ScoreError
-from strapdown_ros.score.scorer import Score, score_bag, score_estimate
+from typing import Any
 
 __all__ = ["Score", "ScoreError", "score_bag", "score_estimate"]
+
+
+def __getattr__(name: str) -> Any:
+    """The public names, imported on first use (``strapdown-sim``'s parser imports
+    :mod:`strapdown_ros.score.cli` and must not load numpy, scipy or the bag reader)."""
+    if name == "ScoreError":
+        from strapdown_ros.score.estimate import ScoreError
+
+        return ScoreError
+    if name in __all__:
+        from strapdown_ros.score import scorer
+
+        return getattr(scorer, name)
+    raise AttributeError(f"module 'strapdown_ros.score' has no attribute {name!r}")
