@@ -8,6 +8,7 @@ Subcommands:
 * ``run SCENARIO --out DIR`` — the live pipeline (nodes as processes) recorded into a bag;
 * ``replay DIR --into navigator --out OUT`` — a bag's IMU/truth into a live navigator_node;
 * ``bag repair DIR`` / ``bag info DIR`` — repair an interrupted recording; summarize a bag;
+* ``score DIR --topic TOPIC`` — score a navigation estimate against the bag's truth;
 * ``sweep-orientation SCENARIO --azimuth-deg ... --tilt-deg ... --out DIR`` — initial attitude
   errors against Young 1980's nonlinear error equations (docs/error_analysis.md);
 
@@ -225,6 +226,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="worker processes of the local cluster (default: one per core)",
     )  # fmt: skip
     bag_info.add_argument("bag", help="bag directory")
+    from strapdown_ros.score.cli import add_parser as add_score_parser
+
+    add_score_parser(sub)
     swp = sub.add_parser(
         "sweep-orientation",
         help="initial attitude errors: navigator vs Young 1980 eq. (51) vs the linear model",
@@ -472,6 +476,12 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _score(args: argparse.Namespace) -> int:
+    from strapdown_ros.score.cli import run
+
+    return run(args)
+
+
 def _bag(args: argparse.Namespace) -> int:
     from strapdown_ros.bag.reader import bag_info
     from strapdown_ros.bag.repair import BagRepairError, repair_bag
@@ -621,6 +631,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     commands = {
         "generate": _generate, "validate": _validate, "run": _run, "replay": _replay,
         "check": _check, "report": _report, "campaign": _campaign, "bag": _bag,
+        "score": _score,
         "sweep-orientation": _sweep_orientation,
     }  # fmt: skip
     try:

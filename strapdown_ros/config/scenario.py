@@ -35,6 +35,7 @@ from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
 from strapdown_ros.config.initial import Initial
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resolve_navigator
 from strapdown_ros.config.tf import TFSpec, check_tf, sensor_frames
+from strapdown_ros.config.timing import TimingSpec, check_timing
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
 from strapdown_ros.config.yaml_limits import (
@@ -202,6 +203,7 @@ class Scenario(Model):
     imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
     tf: TFSpec | None = None  # SECTION tf (config/tf.py): TF, map datum, map odometry
     aiding: AidingSpec | None = None  # SECTION aiding
+    timing: TimingSpec | None = None  # SECTION timing (config/timing.py): sensor timing errors
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -307,6 +309,7 @@ class Scenario(Model):
             sensor_frames(self.aiding, frames["reference_imu"]),
             frames,
         )
+        check_timing(self.timing, set(self.aiding.sensors()) if self.aiding is not None else set())
         return self
 
     def sections(self) -> frozenset[str]:

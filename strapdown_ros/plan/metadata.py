@@ -12,8 +12,9 @@ def bag_custom_data(plan: Plan) -> dict[str, str]:
 
     ``generator``, ``scenario`` (name), ``rate_hz``, the gravitation model and, for the sections
     the scenario has, ``variation.method`` / ``variation.gravity``, ``navigator.algorithm`` /
-    ``navigator.mode`` / ``navigator.imu_topic`` and ``imu_errors.preset`` / ``imu_errors.seed``; ``strapdown-sim
-    report`` names the variation method from it. Written by ``generate`` and ``bag_recorder``.
+    ``navigator.mode`` / ``navigator.imu_topic`` and ``imu_errors.preset`` /
+    ``imu_errors.seed``; ``strapdown-sim report`` names the variation method from it. Written
+    by ``generate`` and ``bag_recorder``.
     """
     scenario = plan.scenario
     data = {
