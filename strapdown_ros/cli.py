@@ -17,9 +17,11 @@ input (scenario, arguments, existing output).
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 
@@ -356,16 +358,41 @@ def _campaign(args: argparse.Namespace) -> int:
 
 #: Exit status of an interrupted command (128 + SIGINT), as a shell reports Ctrl-C.
 EXIT_INTERRUPTED = 130
+#: Signals that stop a command like Ctrl-C (``kill``, systemd, docker, launch; a closed
+#: terminal). Exit status 128 + the signal's number, as a shell reports it.
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
 
-def _describe_output(out: str | None) -> str:
+class Stopped(KeyboardInterrupt):
+    """A stop signal (:data:`STOP_SIGNALS`) taken as Ctrl-C: the same clean-up runs (children
+    stopped, temporary bags and spools removed)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _stop_on_signals() -> None:
+    """SIGTERM and SIGHUP raise :class:`Stopped` in the main thread, once: a second one is
+    ignored while the command cleans up (SIGKILL still ends it)."""
+
+    def stop(signum: int, frame: object) -> None:
+        for s in STOP_SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+        raise Stopped(signum)
+
+    for s in STOP_SIGNALS:
+        signal.signal(s, stop)
+
+
+def _describe_output(out: str | None, command: str = "") -> str:
     """What an interrupted command left at ``out``: the bag's message counts, a hint to repair
-    it, or that nothing was written."""
-    from pathlib import Path
-
+    it, or that nothing was written (a campaign: its finished runs and how to resume)."""
     if not out:
         return ""
     path = Path(out)
+    if command == "campaign":
+        return _describe_campaign(path)
     if not path.exists():
         return f"nothing written at {path}"
     try:
@@ -377,6 +404,19 @@ def _describe_output(out: str | None) -> str:
             f"{path} is left as it was when interrupted ({exc}); "
             f"run 'strapdown-sim bag repair {path}' to make it readable"
         )
+
+
+def _describe_campaign(path: Path) -> str:
+    """What an interrupted campaign left in its directory, and how to resume it."""
+    if not path.is_dir():
+        return f"nothing written at {path}"
+    from strapdown_ros.campaign.results import finished_runs
+
+    n = len(finished_runs(path))
+    return (
+        f"the campaign directory {path} keeps its {n} finished run(s); run the same command "
+        "again (same scenario, --set, --vary, --seed and --out) to compute only the missing runs"
+    )
 
 
 def _environment_fault(command: str, exc: OSError) -> str:
@@ -399,25 +439,25 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     User errors and environment faults (invalid scenario, unreadable bag, full or read-only
     disk) are reported in one line, exit status 1 or 2; Ctrl-C stops the command cleanly with
-    exit status 130 (what was written is summarized). Only an internal bug shows a traceback,
+    exit status 130 (what was written is summarized), SIGTERM and SIGHUP likewise with 143 and
+    129. Only an internal bug shows a traceback,
     behind a one-line summary.
     """
     args = build_parser().parse_args(argv)
+    _stop_on_signals()
     try:
         return _dispatch(args)
-    except KeyboardInterrupt:
-        described = _describe_output(getattr(args, "out", None))
+    except KeyboardInterrupt as exc:
+        described = _describe_output(getattr(args, "out", None), args.command)
+        how = f"stopped by {exc}" if isinstance(exc, Stopped) else "interrupted"
         print(
-            f"strapdown-sim {args.command}: interrupted"
-            + (f"; {described}" if described else ""),
+            f"strapdown-sim {args.command}: {how}" + (f"; {described}" if described else ""),
             file=sys.stderr,
         )
-        return EXIT_INTERRUPTED
+        return 128 + exc.signum if isinstance(exc, Stopped) else EXIT_INTERRUPTED
     except OSError as exc:
         message = _environment_fault(args.command, exc)
         if args.command == "generate":  # the bag is written atomically (bag/writer.py)
-            from pathlib import Path
-
             left = "nothing was written" if not Path(args.out).exists() else "it was not changed"
             message += f"; {left} at {args.out}"
         print(message, file=sys.stderr)
