@@ -167,6 +167,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers", type=int, default=None, metavar="K",
         help="worker processes of the local cluster (default: one per core)",
     )  # fmt: skip
+    cmp_.add_argument(
+        "--dashboard", default="127.0.0.1:0", metavar="HOST:PORT",
+        help="the local cluster's Dask dashboard (with bokeh installed; default 127.0.0.1:0, "
+        "loopback only; e.g. 0.0.0.0:8787 to expose it)",
+    )  # fmt: skip
+    cmp_.add_argument(
+        "--tls-ca-file", default=None, metavar="PEM",
+        help="with a tls:// --scheduler: the CA certificate of the cluster (Dask TLS security; "
+        "default: distributed.comm.tls in Dask's configuration)",
+    )  # fmt: skip
+    cmp_.add_argument("--tls-cert", default=None, metavar="PEM",
+                      help="with --tls-ca-file: this client's certificate")  # fmt: skip
+    cmp_.add_argument("--tls-key", default=None, metavar="PEM",
+                      help="with --tls-cert: its key (default: inside --tls-cert)")  # fmt: skip
     bag_info.add_argument("bag", help="bag directory")
     return parser
 
@@ -342,14 +356,24 @@ def _campaign(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         print("strapdown-sim campaign: --workers must be >= 1", file=sys.stderr)
         return 2
+    tls = None
+    if args.tls_ca_file or args.tls_cert or args.tls_key:
+        if not (args.tls_ca_file and args.tls_cert and args.scheduler):
+            print("strapdown-sim campaign: TLS needs --scheduler tls://..., --tls-ca-file and "
+                  "--tls-cert (and --tls-key unless the key is inside --tls-cert)",
+                  file=sys.stderr)  # fmt: skip
+            return 2
+        from strapdown_ros.campaign.engine import TlsFiles
+
+        tls = TlsFiles(args.tls_ca_file, args.tls_cert, args.tls_key)
     try:
         result = run_campaign(
             args.scenario, args.out, args.runs, overrides=args.overrides,
             duration_s=args.duration, vary=args.vary, seed=args.seed, bags=args.bags,
-            scheduler=args.scheduler, workers=args.workers,
+            scheduler=args.scheduler, workers=args.workers, dashboard=args.dashboard, tls=tls,
             log=lambda m: print(m, file=sys.stderr),
         )  # fmt: skip
-    except FileExistsError as exc:
+    except (FileExistsError, ValueError) as exc:
         print(f"strapdown-sim campaign: {exc}", file=sys.stderr)
         return 2
     print(result.format())
