@@ -93,8 +93,10 @@ def dask_client(
     import dask
     from distributed import Client, LocalCluster
 
-    # Quiet, deterministic workers: no work stealing of finished keys, no spill to disk.
-    settings = {"distributed.worker.daemon": False, "logging.distributed": "error"}
+    # Quiet, deterministic workers: no work stealing of finished keys, no spill to disk. Only
+    # critical log lines: a run's error reaches the user through its future (run_tasks), and
+    # workers stopped with the cluster (Ctrl-C) would log the lost scheduler as errors.
+    settings = {"distributed.worker.daemon": False, "logging.distributed": "critical"}
     if not scheduler:
         preload = list(dask.config.get("distributed.worker.preload", []) or [])
         settings["distributed.worker.preload"] = [*preload, WORKER_PRELOAD]
@@ -110,7 +112,7 @@ def dask_client(
                 processes=True,
                 host="127.0.0.1",
                 dashboard_address=dashboard,
-                silence_logs=40,
+                silence_logs=50,
             )
             client = Client(cluster)
         try:
