@@ -8,6 +8,8 @@ Subcommands:
 * ``run SCENARIO --out DIR`` — the live pipeline (nodes as processes) recorded into a bag;
 * ``replay DIR --into navigator --out OUT`` — a bag's IMU/truth into a live navigator_node;
 * ``bag repair DIR`` / ``bag info DIR`` — repair an interrupted recording; summarize a bag;
+* ``sweep-orientation SCENARIO --azimuth-deg ... --tilt-deg ... --out DIR`` — initial attitude
+  errors against Young 1980's nonlinear error equations (docs/error_analysis.md);
 
 Every command that takes a scenario takes ``--set dotted.key=value`` (value parsed as YAML,
 repeatable) and ``--duration S``. Exit status: 0 success, 1 failure while running, 2 invalid
@@ -182,7 +184,38 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--tls-key", default=None, metavar="PEM",
                       help="with --tls-cert: its key (default: inside --tls-cert)")  # fmt: skip
     bag_info.add_argument("bag", help="bag directory")
+    swp = sub.add_parser(
+        "sweep-orientation",
+        help="initial attitude errors: navigator vs Young 1980 eq. (51) vs the linear model",
+    )
+    _add_scenario_args(swp)
+    swp.add_argument("--azimuth-deg", type=float, nargs="+", required=True, metavar="DEG")
+    swp.add_argument("--tilt-deg", type=float, nargs="+", default=[0.0], metavar="DEG",
+                     help="roll and pitch offsets (deg), default 0")  # fmt: skip
+    swp.add_argument("--navigator", choices=("damped", "exact", "scenario"), default="damped",
+                     help="damped: paper mode + vertical damping (default); exact: undamped "
+                     "exact mode; scenario: the scenario's navigator section")  # fmt: skip
+    swp.add_argument("--out", required=True, help="output directory (sweep.json, plots)")
+    swp.add_argument("--keep-bags", action="store_true", help="keep each case's bag")
+    swp.add_argument("--no-plots", action="store_true", help="only sweep.json and the series")
     return parser
+
+
+def _sweep_orientation(args: argparse.Namespace) -> int:
+    from strapdown_ros.analysis.orientation_sweep import format_table, sweep_orientation
+    from strapdown_ros.analysis.sweep_plots import plot_sweep
+
+    table = sweep_orientation(
+        args.scenario, args.azimuth_deg, args.tilt_deg, args.out, duration_s=args.duration,
+        overrides=args.overrides, setup=args.navigator, keep_bags=args.keep_bags,
+        progress=lambda line: print(line, file=sys.stderr, flush=True),
+        command="strapdown-sim " + " ".join(sys.argv[1:]),
+    )  # fmt: skip
+    print(format_table(table))
+    if not args.no_plots:
+        for path in plot_sweep(args.out):
+            print(f"wrote {path}")
+    return 0
 
 
 class _ProgressBar:
@@ -507,6 +540,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     commands = {
         "generate": _generate, "validate": _validate, "run": _run, "replay": _replay,
         "check": _check, "report": _report, "campaign": _campaign, "bag": _bag,
+        "sweep-orientation": _sweep_orientation,
     }  # fmt: skip
     try:
         if args.command in commands:
