@@ -20,9 +20,11 @@ input (scenario, arguments, existing output).
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 
@@ -225,6 +227,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers", type=int, default=None, metavar="K",
         help="worker processes of the local cluster (default: one per core)",
     )  # fmt: skip
+    cmp_.add_argument(
+        "--dashboard", default="127.0.0.1:0", metavar="HOST:PORT",
+        help="the local cluster's Dask dashboard (with bokeh installed; default 127.0.0.1:0, "
+        "loopback only; e.g. 0.0.0.0:8787 to expose it)",
+    )  # fmt: skip
+    cmp_.add_argument(
+        "--tls-ca-file", default=None, metavar="PEM",
+        help="with a tls:// --scheduler: the CA certificate of the cluster (Dask TLS security; "
+        "default: distributed.comm.tls in Dask's configuration)",
+    )  # fmt: skip
+    cmp_.add_argument("--tls-cert", default=None, metavar="PEM",
+                      help="with --tls-ca-file: this client's certificate")  # fmt: skip
+    cmp_.add_argument("--tls-key", default=None, metavar="PEM",
+                      help="with --tls-cert: its key (default: inside --tls-cert)")  # fmt: skip
     bag_info.add_argument("bag", help="bag directory")
     from strapdown_ros.score.cli import add_parser as add_score_parser
 
@@ -528,14 +544,24 @@ def _campaign(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         print("strapdown-sim campaign: --workers must be >= 1", file=sys.stderr)
         return 2
+    tls = None
+    if args.tls_ca_file or args.tls_cert or args.tls_key:
+        if not (args.tls_ca_file and args.tls_cert and args.scheduler):
+            print("strapdown-sim campaign: TLS needs --scheduler tls://..., --tls-ca-file and "
+                  "--tls-cert (and --tls-key unless the key is inside --tls-cert)",
+                  file=sys.stderr)  # fmt: skip
+            return 2
+        from strapdown_ros.campaign.engine import TlsFiles
+
+        tls = TlsFiles(args.tls_ca_file, args.tls_cert, args.tls_key)
     try:
         result = run_campaign(
             args.scenario, args.out, args.runs, overrides=args.overrides,
             duration_s=args.duration, vary=args.vary, seed=args.seed, bags=args.bags,
-            scheduler=args.scheduler, workers=args.workers,
+            scheduler=args.scheduler, workers=args.workers, dashboard=args.dashboard, tls=tls,
             log=lambda m: print(m, file=sys.stderr),
         )  # fmt: skip
-    except FileExistsError as exc:
+    except (FileExistsError, ValueError) as exc:
         print(f"strapdown-sim campaign: {exc}", file=sys.stderr)
         return 2
     print(result.format())
@@ -544,16 +570,41 @@ def _campaign(args: argparse.Namespace) -> int:
 
 #: Exit status of an interrupted command (128 + SIGINT), as a shell reports Ctrl-C.
 EXIT_INTERRUPTED = 130
+#: Signals that stop a command like Ctrl-C (``kill``, systemd, docker, launch; a closed
+#: terminal). Exit status 128 + the signal's number, as a shell reports it.
+STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
 
-def _describe_output(out: str | None) -> str:
+class Stopped(KeyboardInterrupt):
+    """A stop signal (:data:`STOP_SIGNALS`) taken as Ctrl-C: the same clean-up runs (children
+    stopped, temporary bags and spools removed)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _stop_on_signals() -> None:
+    """SIGTERM and SIGHUP raise :class:`Stopped` in the main thread, once: a second one is
+    ignored while the command cleans up (SIGKILL still ends it)."""
+
+    def stop(signum: int, frame: object) -> None:
+        for s in STOP_SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+        raise Stopped(signum)
+
+    for s in STOP_SIGNALS:
+        signal.signal(s, stop)
+
+
+def _describe_output(out: str | None, command: str = "") -> str:
     """What an interrupted command left at ``out``: the bag's message counts, a hint to repair
-    it, or that nothing was written."""
-    from pathlib import Path
-
+    it, or that nothing was written (a campaign: its finished runs and how to resume)."""
     if not out:
         return ""
     path = Path(out)
+    if command == "campaign":
+        return _describe_campaign(path)
     if not path.exists():
         return f"nothing written at {path}"
     try:
@@ -565,6 +616,19 @@ def _describe_output(out: str | None) -> str:
             f"{path} is left as it was when interrupted ({exc}); "
             f"run 'strapdown-sim bag repair {path}' to make it readable"
         )
+
+
+def _describe_campaign(path: Path) -> str:
+    """What an interrupted campaign left in its directory, and how to resume it."""
+    if not path.is_dir():
+        return f"nothing written at {path}"
+    from strapdown_ros.campaign.results import finished_runs
+
+    n = len(finished_runs(path))
+    return (
+        f"the campaign directory {path} keeps its {n} finished run(s); run the same command "
+        "again (same scenario, --set, --vary, --seed and --out) to compute only the missing runs"
+    )
 
 
 def _environment_fault(command: str, exc: OSError) -> str:
@@ -587,25 +651,25 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     User errors and environment faults (invalid scenario, unreadable bag, full or read-only
     disk) are reported in one line, exit status 1 or 2; Ctrl-C stops the command cleanly with
-    exit status 130 (what was written is summarized). Only an internal bug shows a traceback,
+    exit status 130 (what was written is summarized), SIGTERM and SIGHUP likewise with 143 and
+    129. Only an internal bug shows a traceback,
     behind a one-line summary.
     """
     args = build_parser().parse_args(argv)
+    _stop_on_signals()
     try:
         return _dispatch(args)
-    except KeyboardInterrupt:
-        described = _describe_output(getattr(args, "out", None))
+    except KeyboardInterrupt as exc:
+        described = _describe_output(getattr(args, "out", None), args.command)
+        how = f"stopped by {exc}" if isinstance(exc, Stopped) else "interrupted"
         print(
-            f"strapdown-sim {args.command}: interrupted"
-            + (f"; {described}" if described else ""),
+            f"strapdown-sim {args.command}: {how}" + (f"; {described}" if described else ""),
             file=sys.stderr,
         )
-        return EXIT_INTERRUPTED
+        return 128 + exc.signum if isinstance(exc, Stopped) else EXIT_INTERRUPTED
     except OSError as exc:
         message = _environment_fault(args.command, exc)
         if args.command == "generate":  # the bag is written atomically (bag/writer.py)
-            from pathlib import Path
-
             left = "nothing was written" if not Path(args.out).exists() else "it was not changed"
             message += f"; {left} at {args.out}"
         print(message, file=sys.stderr)

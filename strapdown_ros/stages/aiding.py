@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.batches import Batch, batch
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.aiding import (
     AIDING_TOPICS,
@@ -576,8 +576,7 @@ class AidingStage:
     def feed(self, odom: OdometryFields) -> list[Batch]:
         """:meth:`feed_fields`, serialized: one :class:`Batch` per topic (log time = release)."""
         return [
-            Batch(o.topic, cdr.msgtype_of(o.fields), o.log_ns, cdr.serialize(o.fields))
-            for o in self.feed_fields(odom)
+            batch(o.topic, o.fields, log_ns=o.log_ns) for o in self.feed_fields(odom)
         ]
 
     def on_payloads(self, payloads: list[bytes | memoryview]) -> list[Batch]:
