@@ -27,6 +27,7 @@ from strapdown_ros.config.base import (
     Positive,
     ScenarioError,
     Vector3,
+    finite_number,
     join_key,
     shorten,
 )
@@ -396,14 +397,6 @@ class PerFit(Model):
         return self.position if fit == "position" else self.attitude
 
 
-def _number(value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
-    if not math.isfinite(value):
-        raise ValueError(f"must be finite, got {shorten(value)}")
-    return float(value)
-
-
 def _integer(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ValueError(f"must be an integer, got {type(value).__name__} {shorten(value)}")
@@ -440,8 +433,8 @@ def _knots(value: Any) -> float | tuple[float, ...] | None:
     if value is None:
         return None
     if _is_list(value):
-        return _list(value, _number)
-    spacing = _number(value)
+        return _list(value, finite_number)
+    spacing = finite_number(value)
     if spacing <= 0.0:
         raise ValueError(
             f"must be > 0 (a spacing in s) or a list of breakpoints, got {shorten(value)}"
@@ -474,7 +467,7 @@ def _break(value: Any) -> tuple[float, int]:
         if key not in value:
             raise ScenarioError(key, "is required")
     return (
-        _checked("t_s", _number, value["t_s"]),
+        _checked("t_s", finite_number, value["t_s"]),
         _checked("continuity", _integer, value["continuity"]),
     )
 
