@@ -87,10 +87,20 @@ def _not_null(value: Any) -> Any:
     return value
 
 
-def _non_empty(value: list[Any]) -> list[Any]:
-    if not value:
-        raise ValueError("must be a non-empty list of segments")
-    return value
+class _SegmentList(Model):
+    """A trajectory of consecutive segments (a subclass types ``segments``)."""
+
+    @field_validator("segments", check_fields=False)
+    @classmethod
+    def _non_empty(cls, value: list[Any]) -> list[Any]:
+        if not value:
+            raise ValueError("must be a non-empty list of segments")
+        return value
+
+    @property
+    def natural_duration(self) -> float:
+        """Sum of the segment durations (s)."""
+        return float(sum(s.duration_s for s in self.segments))  # type: ignore[attr-defined]
 
 
 def core_initial(initial: Initial) -> tuple[float, float, float, np.ndarray, np.ndarray]:
@@ -187,18 +197,11 @@ class SegmentSpec(Model):
         )
 
 
-class SegmentsTrajectorySpec(Model):
+class SegmentsTrajectorySpec(_SegmentList):
     """``kind: segments``: maneuver segments in navigation terms from ``initial``."""
 
     kind: Literal["segments"]
     segments: list[SegmentSpec]
-
-    _non_empty = field_validator("segments")(_non_empty)
-
-    @property
-    def natural_duration(self) -> float:
-        """Sum of the segment durations (s)."""
-        return float(sum(s.duration_s for s in self.segments))
 
     def key_of(self, where: tuple[str | int, ...]) -> str:
         """Scenario key of a core :class:`TrajectoryError` location."""
@@ -247,18 +250,11 @@ class IncrementSegmentSpec(Model):
         )
 
 
-class IncrementsTrajectorySpec(Model):
+class IncrementsTrajectorySpec(_SegmentList):
     """``kind: increments``: Savage's constant body rate / specific force segments."""
 
     kind: Literal["increments"]
     segments: list[IncrementSegmentSpec]
-
-    _non_empty = field_validator("segments")(_non_empty)
-
-    @property
-    def natural_duration(self) -> float:
-        """Sum of the segment durations (s)."""
-        return float(sum(s.duration_s for s in self.segments))
 
     def core_segments(self) -> list[IncrementSegment]:
         """The segments in SI units."""
