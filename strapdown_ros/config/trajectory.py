@@ -312,20 +312,23 @@ class ConingSpec(Model):
     @property
     def theta(self) -> float:
         """Cone half-angle θ (rad)."""
-        if self.theta_rad is not None:
-            return self.theta_rad
-        if self.theta_deg is not None:
-            return math.radians(self.theta_deg)
-        return THETA_DEFAULT
+        return _in_radians(self.theta_rad, self.theta_deg, THETA_DEFAULT)
 
     @property
     def precession_rate(self) -> float:
         """Precession rate Ω_p (rad/s)."""
-        if self.precession_rate_radps is not None:
-            return self.precession_rate_radps
-        if self.precession_rate_dps is not None:
-            return math.radians(self.precession_rate_dps)
-        return PRECESSION_RATE_DEFAULT
+        return _in_radians(
+            self.precession_rate_radps, self.precession_rate_dps, PRECESSION_RATE_DEFAULT
+        )
+
+
+def _in_radians(radians: float | None, degrees: float | None, default: float) -> float:
+    """An angle (or a rate) given in radians or in degrees (one of them; neither: the default)."""
+    if radians is not None:
+        return radians
+    if degrees is not None:
+        return math.radians(degrees)
+    return default
 
 
 def _null_is_empty(value: Any) -> Any:
