@@ -22,7 +22,7 @@ PyYAML's safe loader, counting while it composes (so that a refused document is 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 from yaml.events import AliasEvent
@@ -75,6 +75,9 @@ def too_large(size: int) -> str:
     return f"has {size} bytes, more than the {MAX_BYTES} (1 MiB) a scenario may have"
 
 
+_N = TypeVar("_N", SequenceNode, MappingNode)
+
+
 class _BoundedLoader(yaml.SafeLoader):
     """PyYAML's safe loader, refusing documents beyond the limits while composing them."""
 
@@ -90,24 +93,21 @@ class _BoundedLoader(yaml.SafeLoader):
                 raise LimitError(MANY_ALIASES, self.peek_event().start_mark)
         return super().compose_node(parent, index)
 
-    def _enter(self) -> None:
+    def _nested(self, compose: Callable[[str | None], _N], anchor: str | None) -> _N:
+        """``compose(anchor)`` one level deeper, refused beyond :data:`MAX_DEPTH`."""
         self._depth += 1
-        if self._depth > MAX_DEPTH:
-            raise LimitError(DEEP, self.peek_event().start_mark)
+        try:
+            if self._depth > MAX_DEPTH:
+                raise LimitError(DEEP, self.peek_event().start_mark)
+            return compose(anchor)
+        finally:
+            self._depth -= 1
 
     def compose_sequence_node(self, anchor: str | None) -> SequenceNode:
-        self._enter()
-        try:
-            return super().compose_sequence_node(anchor)
-        finally:
-            self._depth -= 1
+        return self._nested(super().compose_sequence_node, anchor)
 
     def compose_mapping_node(self, anchor: str | None) -> MappingNode:
-        self._enter()
-        try:
-            return super().compose_mapping_node(anchor)
-        finally:
-            self._depth -= 1
+        return self._nested(super().compose_mapping_node, anchor)
 
     def get_single_node(self) -> Node | None:
         node = super().get_single_node()
