@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BeforeValidator, Field, PlainValidator, field_validator, model_validator
@@ -88,7 +88,10 @@ def _not_null(value: Any) -> Any:
 
 
 class _SegmentList(Model):
-    """A trajectory of consecutive segments (a subclass types ``segments``)."""
+    """A trajectory of consecutive segments (a subclass types ``segments`` and names the
+    scenario key of each core segment field in ``CORE_KEYS``)."""
+
+    CORE_KEYS: ClassVar[Mapping[str, str]] = {}
 
     @field_validator("segments", check_fields=False)
     @classmethod
@@ -101,6 +104,16 @@ class _SegmentList(Model):
     def natural_duration(self) -> float:
         """Sum of the segment durations (s)."""
         return float(sum(s.duration_s for s in self.segments))  # type: ignore[attr-defined]
+
+    def key_of(self, where: tuple[str | int, ...]) -> str:
+        """Scenario key of a core :class:`TrajectoryError` location."""
+        initial = _initial_key(where)
+        if initial is not None:
+            return initial
+        key = "trajectory"
+        for part in where:
+            key = join_key(key, self.CORE_KEYS.get(part, part) if isinstance(part, str) else part)
+        return key
 
 
 def core_initial(initial: Initial) -> tuple[float, float, float, np.ndarray, np.ndarray]:
@@ -200,18 +213,10 @@ class SegmentSpec(Model):
 class SegmentsTrajectorySpec(_SegmentList):
     """``kind: segments``: maneuver segments in navigation terms from ``initial``."""
 
+    CORE_KEYS = SEGMENT_KEYS
+
     kind: Literal["segments"]
     segments: list[SegmentSpec]
-
-    def key_of(self, where: tuple[str | int, ...]) -> str:
-        """Scenario key of a core :class:`TrajectoryError` location."""
-        initial = _initial_key(where)
-        if initial is not None:
-            return initial
-        key = "trajectory"
-        for part in where:
-            key = join_key(key, SEGMENT_KEYS.get(part, part) if isinstance(part, str) else part)
-        return key
 
     def build(self, initial: Initial) -> SegmentsTrajectory:
         """The core model from ``initial``.
@@ -253,22 +258,14 @@ class IncrementSegmentSpec(Model):
 class IncrementsTrajectorySpec(_SegmentList):
     """``kind: increments``: Savage's constant body rate / specific force segments."""
 
+    CORE_KEYS = {"duration": "duration_s"}
+
     kind: Literal["increments"]
     segments: list[IncrementSegmentSpec]
 
     def core_segments(self) -> list[IncrementSegment]:
         """The segments in SI units."""
         return [s.core_segment() for s in self.segments]
-
-    def key_of(self, where: tuple[str | int, ...]) -> str:
-        """Scenario key of a core :class:`TrajectoryError` location."""
-        initial = _initial_key(where)
-        if initial is not None:
-            return initial
-        key = "trajectory"
-        for part in where:
-            key = join_key(key, "duration_s" if part == "duration" else part)
-        return key
 
 
 # ---------------------------------------------------------------------------------------------
