@@ -19,6 +19,7 @@ from strapdown_ros.config.base import (
     PresetModel,
     ScenarioError,
     StrictInt,
+    finite_number,
     require_correlation_times,
     shorten,
 )
@@ -195,12 +196,10 @@ Sign = Literal["any", "nonneg", "positive"]
 
 
 def _number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(key, f"must be a number, got {type(value).__name__} {shorten(value)}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ScenarioError(key, f"must be finite, got {value}")
-    return value
+    try:
+        return finite_number(value)
+    except ValueError as exc:
+        raise ScenarioError(key, str(exc)) from None
 
 
 def _numbers(value: Any, key: str = "") -> Any:
