@@ -215,10 +215,8 @@ def bias_instability(
 
     Parameters
     ----------
-    taus : (K,) array
-        Increasing averaging times (s).
-    adev : (K,) or (K, k) array
-        Allan deviation.
+    taus, adev
+        As in :func:`white_noise_coefficient`.
     tau_min, tau_max : float, optional
         Only τ in ``[tau_min, tau_max]`` are searched. Default ``tau_max``: a third of the
         largest τ (the longest τ have few independent clusters and noisy slopes).

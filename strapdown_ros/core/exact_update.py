@@ -42,6 +42,7 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
+#: Gravity (m/s², E0) at positions (..., 3) in E0 (m).
 GravityFn = Callable[[Array], Array]
 
 

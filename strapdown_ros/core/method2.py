@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from strapdown_ros.core import _compiled as _k
-from strapdown_ros.core.exact_update import g_matrices
+from strapdown_ros.core.exact_update import GravityFn, g_matrices
 from strapdown_ros.core.rotations import rotvec_from_dcm
 from strapdown_ros.core.series import rotation_coefficients
 
@@ -36,11 +36,9 @@ __all__ = [
     "method2",
     "PairSystem",
     "pair_displacement",
-    "solve_pairs",
 ]
 
 Array = NDArray[np.float64]
-GravityFn = Callable[[Array], Array]
 
 
 def _mv(m: Array, v: Array) -> Array:
@@ -156,34 +154,6 @@ class PairSystem:
             + (g_prev1 + 2.0 * self.g_prev2) * (t * t / 6.0)
         )
         return v, r
-
-
-def solve_pairs(
-    c_prev2: Array,
-    c_prev1: Array,
-    gv1: Array,
-    gr1: Array,
-    gv2: Array,
-    gr2: Array,
-    r_prev2: Array,
-    r_cur: Array,
-    v_prev2: Array,
-    v_cur: Array,
-    g_prev2: Array,
-    g_prev1: Array,
-    g_cur: Array,
-    period: float,
-    displacement: Array | None = None,
-) -> tuple[Array, Array]:
-    """Savage 2020 eq. (31): Δv_{2n-1}, Δv_{2n} (m/s, body axes) for arrays of cycle pairs.
-
-    One-shot form of :class:`PairSystem` (same subscripts and arguments, plus ``g_prev1``).
-    """
-    system = PairSystem(
-        c_prev2, c_prev1, gv1, gr1, gv2, gr2, r_prev2, r_cur, v_prev2, v_cur, g_prev2, g_cur,
-        period, displacement,
-    )  # fmt: skip
-    return system.solve(g_prev1)
 
 
 def pair_displacement(v_e0: ArrayLike, period: float) -> Array:

@@ -281,11 +281,13 @@ def as_stamps(stamps_ns: ArrayLike) -> I64:
     return t.astype(np.int64, copy=False)
 
 
-def as_rows(a: ArrayLike, n: int, width: int, name: str) -> F64:
-    """``a`` as an (n, width) float64 array; ValueError naming ``name`` otherwise."""
+def as_rows(a: ArrayLike, n: int, width: int | tuple[int, ...], name: str) -> F64:
+    """``a`` as an (n, width) float64 array (a tuple ``width``: (n, *width), e.g. (n, 3, 3) for
+    matrices); ValueError naming ``name`` otherwise."""
+    shape = (n, *width) if isinstance(width, tuple) else (n, width)
     a = np.asarray(a, dtype=np.float64)
-    if a.shape != (n, width):
-        raise ValueError(f"{name}: expected shape ({n}, {width}), got {a.shape}")
+    if a.shape != shape:
+        raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
     return a
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "epoch_mask",
     "mat_t_vec",
     "mat_vec",
+    "rate_cross_lever",
     "sensor_rng",
 ]
 
@@ -61,6 +62,24 @@ def mat_vec(c: Array, v: Array) -> Array:
 def mat_t_vec(c: Array, v: Array) -> Array:
     """``cᵀ @ v`` of stacked 3×3 matrices and vectors (see :func:`mat_vec`)."""
     return (c[..., 0, :] * v[..., 0:1] + c[..., 1, :] * v[..., 1:2]) + c[..., 2, :] * v[..., 2:3]
+
+
+def rate_cross_lever(omega_eb_b: ArrayLike, lever_arm_b: ArrayLike) -> Array:
+    """``ω × l`` (n, 3): velocity (m/s, body FRD) of a point on the body relative to the IMU.
+
+    ``lever_arm_b``: the point from the IMU (m, FRD, (3,) or (n, 3)); ``omega_eb_b``: body
+    rates relative to the Earth (n, 3, rad/s, FRD). Written out, one sum order whatever n.
+    """
+    w = np.asarray(omega_eb_b, dtype=np.float64)
+    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
+    return np.stack(
+        [
+            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
+            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
+            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
+        ],
+        axis=-1,
+    )
 
 
 class GaussMarkov:

@@ -9,6 +9,7 @@ white noise, for position (m) and velocity (m/s). Equations and presets: ``docs/
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,6 +19,7 @@ from strapdown_ros.core.aiding.common import (
     check_period,
     mat_t_vec,
     mat_vec,
+    rate_cross_lever,
     sensor_rng,
 )
 from strapdown_ros.core.earth import dcm_ned_to_ecef, ecef_to_geodetic
@@ -37,14 +39,6 @@ Array = NDArray[np.float64]
 GNSS_NORMALS_PER_EPOCH = 12
 
 
-def _zeros() -> Array:
-    return np.zeros(3)
-
-
-def _ones() -> Array:
-    return np.ones(3)
-
-
 @dataclass(frozen=True)
 class GnssErrors:
     """Receiver error parameters, per NED axis (north, east, down), SI units.
@@ -53,14 +47,14 @@ class GnssErrors:
     ``*_offset`` constant offset. Position in m, velocity in m/s.
     """
 
-    position_white: Array = field(default_factory=_zeros)
-    position_gm_sigma: Array = field(default_factory=_zeros)
-    position_gm_tau_s: Array = field(default_factory=_ones)
-    position_offset: Array = field(default_factory=_zeros)
-    velocity_white: Array = field(default_factory=_zeros)
-    velocity_gm_sigma: Array = field(default_factory=_zeros)
-    velocity_gm_tau_s: Array = field(default_factory=_ones)
-    velocity_offset: Array = field(default_factory=_zeros)
+    position_white: Array = field(default_factory=partial(np.zeros, 3))
+    position_gm_sigma: Array = field(default_factory=partial(np.zeros, 3))
+    position_gm_tau_s: Array = field(default_factory=partial(np.ones, 3))
+    position_offset: Array = field(default_factory=partial(np.zeros, 3))
+    velocity_white: Array = field(default_factory=partial(np.zeros, 3))
+    velocity_gm_sigma: Array = field(default_factory=partial(np.zeros, 3))
+    velocity_gm_tau_s: Array = field(default_factory=partial(np.ones, 3))
+    velocity_offset: Array = field(default_factory=partial(np.zeros, 3))
 
     @property
     def position_variance(self) -> Array:
@@ -97,17 +91,8 @@ def antenna_state(
     r = np.asarray(r_e, dtype=np.float64)
     v = np.asarray(v_e, dtype=np.float64)
     c = np.asarray(c_b_e, dtype=np.float64)
-    w = np.asarray(omega_eb_b, dtype=np.float64)
-    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
-    wxl = np.stack(
-        [
-            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
-            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
-            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
-        ],
-        axis=-1,
-    )
-    return r + mat_vec(c, lever), v + mat_vec(c, wxl)
+    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), np.shape(omega_eb_b))
+    return r + mat_vec(c, lever), v + mat_vec(c, rate_cross_lever(omega_eb_b, lever))
 
 
 class GnssErrorModel:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -148,14 +149,6 @@ def field_body(c_b_n: ArrayLike, field_ned: ArrayLike) -> Array:
     return mat_t_vec(np.asarray(c_b_n, dtype=np.float64), np.asarray(field_ned, dtype=np.float64))
 
 
-def _zeros() -> Array:
-    return np.zeros(3)
-
-
-def _identity() -> Array:
-    return np.eye(3)
-
-
 @dataclass(frozen=True)
 class MagnetometerErrors:
     """Magnetometer errors, body FRD, tesla.
@@ -164,10 +157,10 @@ class MagnetometerErrors:
     ``soft_iron`` the 3×3 matrix S (identity: none); ``white`` noise σ per axis (3,).
     """
 
-    hard_iron: Array = field(default_factory=_zeros)
-    hard_iron_sigma: Array = field(default_factory=_zeros)
-    soft_iron: Array = field(default_factory=_identity)
-    white: Array = field(default_factory=_zeros)
+    hard_iron: Array = field(default_factory=partial(np.zeros, 3))
+    hard_iron_sigma: Array = field(default_factory=partial(np.zeros, 3))
+    soft_iron: Array = field(default_factory=partial(np.eye, 3))
+    white: Array = field(default_factory=partial(np.zeros, 3))
 
     @property
     def variance(self) -> Array:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from strapdown_ros.core.aiding.common import check_period, mat_t_vec, sensor_rng
+from strapdown_ros.core.aiding.common import check_period, mat_t_vec, rate_cross_lever, sensor_rng
 
 __all__ = [
     "ODOMETER_NORMALS_PER_EPOCH",
@@ -42,17 +42,7 @@ def contact_point_velocity(
     """
     v = np.asarray(v_e, dtype=np.float64)
     c = np.asarray(c_b_e, dtype=np.float64)
-    w = np.asarray(omega_eb_b, dtype=np.float64)
-    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
-    wxl = np.stack(
-        [
-            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
-            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
-            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
-        ],
-        axis=-1,
-    )
-    return mat_t_vec(c, v) + wxl
+    return mat_t_vec(c, v) + rate_cross_lever(omega_eb_b, lever_arm_b)
 
 
 def contact_point_speed(
