@@ -19,6 +19,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
+from strapdown_ros.config.aided import AidedSpec, check_aided
 from strapdown_ros.config.aiding import AidingSpec, check_aiding
 from strapdown_ros.config.base import (
     Finite,
@@ -166,6 +167,7 @@ class Scenario(Model):
     imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
     tf: TFSpec | None = None  # SECTION tf (config/tf.py): TF, map datum, map odometry
     aiding: AidingSpec | None = None  # SECTION aiding
+    aided: AidedSpec | None = None  # SECTION aided (config/aided.py): the aided INS
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -238,6 +240,7 @@ class Scenario(Model):
         check_trajectory(self)
         check_imu_errors(self)
         check_aiding(self)
+        check_aided(self)
         check_navigator(self)
         check_variation(self)
         check_tf(self)

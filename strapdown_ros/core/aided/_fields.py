@@ -1,5 +1,7 @@
-"""Compiled Earth fields at one point for the aided filter: geodetic coordinates, local level,
-gravitation gradient, ICAO pressure (and its slope), IGRF main field.
+"""Compiled Earth fields at one point for the aided filter.
+
+Geodetic coordinates, local level, gravitation gradient, ICAO pressure (and its slope), IGRF
+main field.
 
 Scalar (numba) counterparts of the vectorized functions the simulation uses, so that the filter
 predicts exactly what the sensors were made from:

@@ -15,22 +15,24 @@ as one call.
 
 Arrays (owned by :class:`strapdown_ros.core.aided.engine.AidedFilter`):
 
-``ist`` int64 (2,): current cycle m (since the filter's start), posterior flag. Checkpoint of
-grid point m in slot ``((k0 + m) // gstep) % len(ck_m)`` (``gstep``: the gcd of the grid
-periods, so grid points in the window never share a slot). ``nav`` (27,): R (3), V (3), C_B^E0 row-major (9), Kahan residuals of R and V
-(6), raw Δα̃ and Δṽ of the last cycle (6). ``est`` (n,): estimates of the non-navigation
-states. ``acc`` (19,): Σ C (9), Σ C Δv̂ (3), Σ Δα̂ (3), Σ Δv̂ (3), cycles (1) since the last grid
-point. History rows ``h_*`` sorted by (cycle, kind); ``h_status`` 0 never applied, 1 applied
-now for the first time (results in ``h_out``: innovation (3), NIS, dof, accepted), 2 reported.
+``ist`` int64 (4,): current cycle m (since the filter's start), posterior flag, last output
+cycle stored, output rows stored. Checkpoint of grid point m in slot
+``((k0 + m) // gstep) % len(ck_m)`` (``gstep``: the gcd of the grid periods, so grid points in
+the window never share a slot). ``nav`` (27,): R (3), V (3), C_B^E0 row-major (9), Kahan
+residuals of R and V (6), raw Δα̃ and Δṽ of the last cycle (6). ``est`` (n,): estimates of
+the non-navigation states. ``acc`` (19,): Σ C (9), Σ C Δv̂ (3), Σ Δα̂ (3), Σ Δv̂ (3), cycles (1)
+since the last grid point. History rows ``h_*`` sorted by (cycle, kind); ``h_status`` 0 never
+applied, 1 applied now for the first time (results in ``h_out``: innovation (3), NIS, dof,
+accepted), 2 reported.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from strapdown_ros.core.aided._fields import gravitation_gradient
 from strapdown_ros.core.aided._jit import jit
 from strapdown_ros.core.aided._small import rotation_exp
-from strapdown_ros.core.aided._fields import gravitation_gradient
 from strapdown_ros.core.aided.dynamics import (
     continuous_noise,
     propagate_covariance,
@@ -52,7 +54,7 @@ from strapdown_ros.core.aided.measurement_models import (
 from strapdown_ros.core.aided.update import joseph_update, reset_attitude
 from strapdown_ros.core.navigation._kernels import exact_kernel
 
-__all__ = ["advance", "apply_epoch", "inject", "is_grid", "make_posterior"]
+__all__ = ["advance", "apply_epoch", "inject", "is_grid", "make_posterior", "record_output"]
 
 
 @jit
@@ -66,8 +68,11 @@ def is_grid(k_abs, periods):
 
 @jit
 def inject(nav, est, dx, ni_start):
-    """Add the correction ``dx`` to the nominal state: R, V (compensated sums), ``C ← exp([dφ×]) C``,
-    the other estimates from index ``ni_start`` (= 9)."""
+    """Add the correction ``dx`` to the nominal state.
+
+    R, V by compensated sums, ``C ← exp([dφ×]) C``, the other estimates from index
+    ``ni_start`` (= 9).
+    """
     for a in range(6):
         y = dx[a] + nav[15 + a]
         t = nav[a] + y
@@ -169,11 +174,31 @@ def make_posterior(ist, nav, est, p, off, pns, h_m, h_kind, h_z, h_r, h_dim, h_s
 
 
 @jit
+def record_output(ist, nav, est, p, k0, out_period, out_m, out_nav, out_est, out_p):
+    """Store the (posterior) state if the current cycle is an output epoch not stored yet."""
+    m = ist[0]
+    if (k0 + m) % out_period == 0 and m > ist[2]:
+        row = ist[3]
+        out_m[row] = m
+        out_nav[row] = nav
+        out_est[row] = est
+        out_p[row] = p
+        ist[3] = row + 1
+        ist[2] = m
+
+
+@jit
 def advance(m_target, ist, nav, est, p, acc, ring_da, ring_dv, periods, k0, pns, off, beta, q,
-            q_ins, ni, gmodel, p_int, gstep, ck_m, ck_nav, ck_est, ck_p, h_m, h_kind, h_z, h_r, h_dim,
-            h_status, h_out, h_n, levers, wheel_mask, igrf_g, igrf_h, igrf_a1, igrf_a2,
-            igrf_d, igrf_radius, gate, sr, sv, sc, da_c, dv_c):  # fmt: skip
+            q_ins, ni, gmodel, p_int, gstep, ck_m, ck_nav, ck_est, ck_p, h_m, h_kind, h_z, h_r,
+            h_dim, h_status, h_out, h_n, levers, wheel_mask, igrf_g, igrf_h, igrf_a1, igrf_a2,
+            igrf_d, igrf_radius, gate, sr, sv, sc, da_c, dv_c, out_period, record, out_m,
+            out_nav, out_est, out_p):  # fmt: skip
     """Run from the current cycle to the prior of ``m_target`` (see the module docstring).
+
+    With ``record``, the posterior at each output epoch (absolute cycle a multiple of
+    ``out_period``) after ``ist[2]`` and before ``m_target`` is stored in ``out_*`` (row
+    ``ist[3]``, which is advanced; the caller makes room for every epoch of the span) and
+    ``ist[2]`` set to it.
 
     ``ring_da``, ``ring_dv`` (cap, 3): raw increments, cycle m at row ``m % cap`` (filled up to
     ``m_target``). ``sr``, ``sv``, ``sc``, ``da_c``, ``dv_c``: scratch of at least the longest
@@ -184,6 +209,8 @@ def advance(m_target, ist, nav, est, p, acc, ring_da, ring_dv, periods, k0, pns,
     make_posterior(ist, nav, est, p, off, pns, h_m, h_kind, h_z, h_r, h_dim, h_status, h_out,
                    h_n, levers, wheel_mask, igrf_g, igrf_h, igrf_a1, igrf_a2, igrf_d,
                    igrf_radius, gate)  # fmt: skip
+    if record:
+        record_output(ist, nav, est, p, k0, out_period, out_m, out_nav, out_est, out_p)
     cap = ring_da.shape[0]
     period = pns * 1e-9
     bg, gmg, sfg = off[B_BG], off[B_GMG], off[B_SFG]
@@ -238,5 +265,8 @@ def advance(m_target, ist, nav, est, p, acc, ring_da, ring_dv, periods, k0, pns,
                             h_status, h_out, h_n, levers, wheel_mask, igrf_g, igrf_h, igrf_a1,
                             igrf_a2, igrf_d, igrf_radius, gate)  # fmt: skip
                 lo = nav[15:21].copy()
+                if record:
+                    record_output(ist, nav, est, p, k0, out_period, out_m, out_nav, out_est,
+                                  out_p)  # fmt: skip
         else:
             ist[1] = 1

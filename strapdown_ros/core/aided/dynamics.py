@@ -108,8 +108,10 @@ def dense_dynamics(rows, cols, vals, nnz, ni):
 
 @jit
 def continuous_noise(cm, q_ins, q, ni):
-    """``Q_c`` (ni, ni) of the coupled block: ``C̄ diag(q_a) C̄ᵀ`` on δV, ``C̄ diag(q_g) C̄ᵀ`` on φ,
-    ``diag(q)`` on the IMU error states."""
+    """``Q_c`` (ni, ni) of the coupled block.
+
+    ``C̄ diag(q_a) C̄ᵀ`` on δV, ``C̄ diag(q_g) C̄ᵀ`` on φ, ``diag(q)`` on the IMU error states.
+    """
     qc = np.zeros((ni, ni))
     for a in range(2):
         base = 3 + 3 * a
@@ -191,8 +193,11 @@ def van_loan_series(rows, cols, vals, nnz, qc, dt):
 
 @jit
 def propagate_covariance(p, phi, qd, beta, q, dt, ni):
-    """``P ← Φ P Φᵀ + Q_d`` in place (n, n), Φ = [[Φ_c, 0], [0, D]] with the coupled block's
-    ``Φ_c`` (ni, ni; its rows ≥ 9 diagonal) and D the closed form of the sensor states."""
+    """``P ← Φ P Φᵀ + Q_d`` in place (n, n).
+
+    ``Φ = [[Φ_c, 0], [0, D]]`` with the coupled block's ``Φ_c`` (ni, ni; its rows ≥ 9
+    diagonal) and D the closed form of the sensor states.
+    """
     n = p.shape[0]
     d = np.empty(n)
     for i in range(9, ni):

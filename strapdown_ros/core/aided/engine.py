@@ -31,11 +31,16 @@ from strapdown_ros.core.aided.model import FilterModel
 from strapdown_ros.core.aiding.magnetometer import IGRF_REFERENCE_RADIUS_M, _recursion_factors
 from strapdown_ros.core.navigation._kernels import GRAVITY_CODES
 
-__all__ = ["AidedFilter", "FilterSetup", "MeasurementResult", "Snapshot", "gate_thresholds"]
+__all__ = [
+    "AidedFilter", "FilterSetup", "MeasurementResults", "Snapshot", "Snapshots",
+    "gate_thresholds",
+]
 
 F64 = NDArray[np.float64]
 #: Rows of the IMU ring beyond the rollback window (the largest block written at once).
 RING_CHUNK = 4096
+#: Output-epoch states stored per buffer (spilled to a list when full).
+OUTPUT_ROWS = 256
 
 
 def gate_thresholds(probability: float) -> F64:
@@ -72,6 +77,8 @@ class FilterSetup:
     gravity_model : str
     gravity_steps : int
         Gravitation sub-steps P of the exact kernel per IMU cycle.
+    output_period : int
+        Output period (cycles, absolute grid): the states stored by :meth:`AidedFilter.advance`.
     """
 
     period_ns: int
@@ -84,6 +91,7 @@ class FilterSetup:
     window_cycles: int = 0
     gravity_model: str = "j2"
     gravity_steps: int = 1
+    output_period: int = 1
 
 
 @dataclass(frozen=True)
@@ -97,14 +105,29 @@ class Snapshot:
 
 
 @dataclass(frozen=True)
-class MeasurementResult:
-    """A measurement's first application: its id, innovation ν (dof,), NIS, dof, accepted."""
+class Snapshots:
+    """Stored output-epoch states: cycles ``m`` (K,), ``nav`` (K, 27), ``est`` (K, n), P."""
 
-    uid: int
+    m: NDArray[np.int64]
+    nav: F64
+    est: F64
+    p: F64
+
+
+@dataclass(frozen=True)
+class MeasurementResults:
+    """First applications of K measurements.
+
+    Ids, kinds, validity cycles, innovations (K, 3; zero beyond the dof), NIS, dof, accepted.
+    """
+
+    uid: NDArray[np.int64]
+    kind: NDArray[np.int64]
+    m: NDArray[np.int64]
     innovation: F64
-    nis: float
-    dof: int
-    accepted: bool
+    nis: F64
+    dof: NDArray[np.int64]
+    accepted: NDArray[np.bool_]
 
 
 class AidedFilter:
@@ -131,7 +154,7 @@ class AidedFilter:
             raise ValueError(f"P0 must be ({n}, {n}), got {p0.shape}")
         self.model, self.setup, self.layout = model, setup, lay
         self.period_ns = int(setup.period_ns)
-        self.ist = np.zeros(2, dtype=np.int64)
+        self.ist = np.array([0, 0, -1, 0], dtype=np.int64)
         self.nav = np.zeros(27)
         self.nav[0:3], self.nav[3:6] = r0, v0
         self.nav[6:15] = np.asarray(c0, dtype=np.float64).reshape(9)
@@ -158,7 +181,6 @@ class AidedFilter:
         # history
         self.h_n = 0
         self._h_alloc(64)
-        self.uids: list[int] = []
         # scratch: the longest stretch between grid points
         longest = int(self.periods.min()) if self.periods.size else 1
         longest = max(int(self.periods.max()), longest) + 1
@@ -179,6 +201,12 @@ class AidedFilter:
         self.igrf = (g, h, np.ascontiguousarray(a1), np.ascontiguousarray(a2),
                      np.ascontiguousarray(diag), float(IGRF_REFERENCE_RADIUS_M))  # fmt: skip
         self.gate = gate_thresholds(setup.gate_probability)
+        self.out_period = int(setup.output_period)
+        self.out_m = np.zeros(OUTPUT_ROWS, dtype=np.int64)
+        self.out_nav = np.zeros((OUTPUT_ROWS, 27))
+        self.out_est = np.zeros((OUTPUT_ROWS, n))
+        self.out_p = np.zeros((OUTPUT_ROWS, n, n))
+        self._spilled: list[Snapshots] = []
         self.gmodel = GRAVITY_CODES[setup.gravity_model]
         self.p_int = int(setup.gravity_steps)
         self.imu_end = 0  # last cycle whose increments are buffered
@@ -189,9 +217,14 @@ class AidedFilter:
 
     # -- history storage ----------------------------------------------------------------------
 
+    _H = ("h_m", "h_kind", "h_z", "h_r", "h_dim", "h_status", "h_out", "h_uid")
+
+    def _h_arrays(self) -> list[np.ndarray]:
+        return [getattr(self, a) for a in self._H]
+
     def _h_alloc(self, size: int) -> None:
-        old = None if not hasattr(self, "h_m") else (self.h_m, self.h_kind, self.h_z, self.h_r,
-                                                     self.h_dim, self.h_status, self.h_out)  # fmt: skip
+        old = None if not hasattr(self, "h_m") else self._h_arrays()
+        self.h_uid = np.zeros(size, dtype=np.int64)
         self.h_m = np.zeros(size, dtype=np.int64)
         self.h_kind = np.zeros(size, dtype=np.int64)
         self.h_z = np.zeros((size, 6))
@@ -201,8 +234,7 @@ class AidedFilter:
         self.h_out = np.zeros((size, 6))
         if old is not None:
             k = self.h_n
-            for new, o in zip((self.h_m, self.h_kind, self.h_z, self.h_r, self.h_dim,
-                               self.h_status, self.h_out), old, strict=True):  # fmt: skip
+            for new, o in zip(self._h_arrays(), old, strict=True):
                 new[:k] = o[:k]
 
     @property
@@ -248,62 +280,69 @@ class AidedFilter:
         Delayed measurements (``m`` before the current cycle, or at it after its updates) roll
         the filter back and re-run it (docs/theory/aided_ins.md §7).
         """
-        if m > self.m:
-            self._insert_row(kind, m, z, r, uid)
-            return
-        if m < self.m - self.window:
-            raise ValueError(
-                f"measurement at cycle {m} is older than the rollback window "
-                f"({self.window} cycles before cycle {self.m})"
-            )
-        self._insert_row(kind, m, z, r, uid)
-        if m == self.m and not self.ist[1]:
-            return  # the current epoch's updates are not applied yet
-        self._rollback(m)
+        self.insert_many([(kind, m, z, r, uid)])
 
     def insert_many(self, rows: Sequence[tuple[int, int, Sequence[float], F64, int]]) -> None:
-        """Insert several measurements; one rollback to the earliest delayed one."""
-        earliest = None
-        for kind, m, z, r, uid in rows:
-            if m > self.m or (m == self.m and not self.ist[1]):
-                self._insert_row(kind, m, z, r, uid)
-                continue
-            if m < self.m - self.window:
-                raise ValueError(
-                    f"measurement at cycle {m} is older than the rollback window "
-                    f"({self.window} cycles before cycle {self.m})"
-                )
-            self._insert_row(kind, m, z, r, uid)
-            earliest = m if earliest is None else min(earliest, m)
-        if earliest is not None:
-            self._rollback(earliest)
+        """Insert several measurements ``(kind, m, z, r, uid)``.
 
-    def _insert_row(self, kind: int, m: int, z: Sequence[float], r: F64, uid: int) -> None:
-        if not 0 <= kind < len(KINDS):
-            raise ValueError(f"unknown measurement kind {kind}")
+        One rollback to the earliest delayed one.
+        """
+        if not rows:
+            return
+        k = len(rows)
+        z = np.zeros((k, 6))
+        rr = np.zeros((k, 3, 3))
+        dim = np.empty(k, dtype=np.int64)
+        for i, row in enumerate(rows):
+            zv = np.asarray(row[2], dtype=np.float64).reshape(-1)
+            z[i, : len(zv)] = zv
+            ri = np.asarray(row[3], dtype=np.float64)
+            dim[i] = ri.shape[0]
+            rr[i, : dim[i], : dim[i]] = ri
+        self.insert_arrays(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), z, rr,
+                           dim, np.array([r[4] for r in rows]))  # fmt: skip
+
+    def insert_arrays(self, kind: NDArray[np.int64], m: NDArray[np.int64], z: F64, r: F64,
+                      dim: NDArray[np.int64], uid: NDArray[np.int64]) -> None:  # fmt: skip
+        """Insert K measurements given as arrays.
+
+        Kinds, validity cycles, values (K, 6), covariances (K, 3, 3; the leading dim × dim block
+        used), dims, ids.
+        """
+        kind = np.asarray(kind, dtype=np.int64)
+        m = np.asarray(m, dtype=np.int64)
+        k = len(kind)
+        if not k:
+            return
+        if np.any((kind < 0) | (kind >= len(KINDS))):
+            raise ValueError(f"unknown measurement kind in {sorted(set(kind.tolist()))}")
+        oldest = self.m - self.window
+        if np.any(m < oldest):
+            raise ValueError(
+                f"measurement at cycle {int(m.min())} is older than the rollback window "
+                f"({self.window} cycles before cycle {self.m})"
+            )
         n = self.h_n
-        if n == len(self.h_m):
-            self._h_alloc(2 * len(self.h_m))
-        key = m * 8 + kind
-        keys = self.h_m[:n] * 8 + self.h_kind[:n]
-        pos = int(np.searchsorted(keys, key, side="right"))
-        for a in (self.h_m, self.h_kind, self.h_z, self.h_r, self.h_dim, self.h_status,
-                  self.h_out):  # fmt: skip
-            a[pos + 1 : n + 1] = a[pos:n].copy()
-        self.uids.insert(pos, uid)
-        rr = np.asarray(r, dtype=np.float64)
-        d = rr.shape[0]
-        zz = np.zeros(6)
-        zv = np.asarray(z, dtype=np.float64).reshape(-1)
-        zz[: len(zv)] = zv
-        self.h_m[pos], self.h_kind[pos] = m, kind
-        self.h_z[pos] = zz
-        self.h_r[pos] = 0.0
-        self.h_r[pos, :d, :d] = rr
-        self.h_dim[pos] = d
-        self.h_status[pos] = 0
-        self.h_out[pos] = 0.0
-        self.h_n = n + 1
+        if n + k > len(self.h_m):
+            self._h_alloc(max(2 * len(self.h_m), n + k))
+        new = (m, kind, np.asarray(z, dtype=np.float64), np.asarray(r, dtype=np.float64),
+               np.asarray(dim, dtype=np.int64), np.zeros(k, dtype=np.int64), np.zeros((k, 6)),
+               np.asarray(uid, dtype=np.int64))  # fmt: skip
+        old_key = self.h_m[:n] * 8 + self.h_kind[:n]
+        new_key = m * 8 + kind
+        if n == 0 or new_key.min() >= old_key[-1]:  # the common case: appended in order
+            order = np.argsort(new_key, kind="stable")
+            for name, add in zip(self._H, new, strict=True):
+                getattr(self, name)[n : n + k] = add[order]
+        else:
+            order = np.argsort(np.concatenate([old_key, new_key]), kind="stable")
+            for name, add in zip(self._H, new, strict=True):
+                arr = getattr(self, name)
+                arr[: n + k] = np.concatenate([arr[:n], add])[order]
+        self.h_n = n + k
+        late = (m < self.m) | ((m == self.m) & (self.ist[1] != 0))
+        if np.any(late):
+            self._rollback(int(m[late].min()))
 
     def _rollback(self, m: int) -> None:
         slot = self._slot(m)
@@ -318,13 +357,13 @@ class AidedFilter:
         self.ist[0], self.ist[1] = m, 0
         self.rollbacks += 1
         if back_to > m:
-            self._advance(back_to)
+            self._advance(back_to, False)
         if was_posterior:
             self.make_posterior()
 
     # -- running -------------------------------------------------------------------------------
 
-    def _call(self, target: int) -> None:
+    def _call(self, target: int, record: bool) -> None:
         _loop.advance(
             target, self.ist, self.nav, self.est, self.p, self.acc, self.ring_da, self.ring_dv,
             self.periods, self.k0, self.period_ns, self.layout.offsets, self.model.beta,
@@ -333,28 +372,67 @@ class AidedFilter:
             self.h_z,
             self.h_r, self.h_dim, self.h_status, self.h_out, self.h_n, self.levers,
             self.wheel_mask, *self.igrf, self.gate, self.sr, self.sv, self.sc, self.da_c,
-            self.dv_c,
+            self.dv_c, self.out_period, record, self.out_m, self.out_nav, self.out_est,
+            self.out_p,
         )  # fmt: skip
 
-    def _advance(self, target: int) -> None:
+    def _advance(self, target: int, record: bool) -> None:
         cap = self.ring_da.shape[0]
         step = cap - self.window - 2
+        if record:  # room in the output buffer for every output epoch of a call
+            step = min(step, max(1, (len(self.out_m) - 2) * self.out_period))
         self._first_rate()
         while self.m < target:
             upto = min(target, self.m + step)
             self._fill_ring(upto)
-            self._call(upto)
+            if record and int(self.ist[3]) + (upto - self.m) // self.out_period + 2 > len(
+                self.out_m
+            ):
+                self._spill()
+            self._call(upto, record)
 
     def advance(self, target: int) -> None:
-        """Integrate up to cycle ``target`` (its increments added), stopping at its prior."""
+        """Integrate up to cycle ``target`` (its increments added), stopping at its prior.
+
+        The posterior states at the output epochs passed are stored (:meth:`outputs`).
+        """
         if target > self.imu_end:
             raise ValueError(f"cycle {target} is beyond the increments received ({self.imu_end})")
-        self._advance(target)
+        self._advance(target, True)
         self._prune()
 
+    def record_now(self) -> None:
+        """Make the current cycle posterior and store it if it is an output epoch."""
+        self.make_posterior()
+        if int(self.ist[3]) + 1 > len(self.out_m):
+            self._spill()
+        _loop.record_output(self.ist, self.nav, self.est, self.p, self.k0, self.out_period,
+                            self.out_m, self.out_nav, self.out_est, self.out_p)  # fmt: skip
+
+    def _spill(self) -> None:
+        k = int(self.ist[3])
+        if k:
+            self._spilled.append(Snapshots(self.out_m[:k].copy(), self.out_nav[:k].copy(),
+                                           self.out_est[:k].copy(), self.out_p[:k].copy()))
+            self.ist[3] = 0
+
+    def outputs(self) -> Snapshots:
+        """The output-epoch states stored since the last call (cycles ``m`` increasing)."""
+        self._spill()
+        parts, self._spilled = self._spilled, []
+        if not parts:
+            n = self.layout.n
+            return Snapshots(np.zeros(0, dtype=np.int64), np.zeros((0, 27)), np.zeros((0, n)),
+                             np.zeros((0, n, n)))  # fmt: skip
+        return Snapshots(*(np.concatenate([getattr(p, f) for p in parts])
+                           for f in ("m", "nav", "est", "p")))  # fmt: skip
+
     def _first_rate(self) -> None:
-        """At cycle 0 the body rate is that of cycle 1 (``twist.angular`` of the first truth
-        message, docs/messages.md): copy its raw increments into the state (and checkpoint)."""
+        """At cycle 0 use the body rate of cycle 1.
+
+        That is ``twist.angular`` of the first truth message (docs/messages.md): its raw
+        increments are copied into the state (and the checkpoint).
+        """
         if self._rate0 or self.m != 0 or self.imu_end < 1:
             return
         self._fill_ring(1)
@@ -379,16 +457,14 @@ class AidedFilter:
         self.make_posterior()
         return Snapshot(self.m, self.nav.copy(), self.est.copy(), self.p.copy())
 
-    def collect(self) -> list[MeasurementResult]:
+    def collect(self) -> MeasurementResults:
         """Results of the measurements applied for the first time since the last call."""
         rows = np.flatnonzero(self.h_status[: self.h_n] == 1)
-        out = []
-        for row in rows:
-            d = int(self.h_out[row, 4])
-            out.append(MeasurementResult(self.uids[row], self.h_out[row, :d].copy(),
-                                         float(self.h_out[row, 3]), d,
-                                         bool(self.h_out[row, 5])))  # fmt: skip
-            self.h_status[row] = 2
+        out = MeasurementResults(self.h_uid[rows].copy(), self.h_kind[rows].copy(),
+                                 self.h_m[rows].copy(), self.h_out[rows, :3].copy(),
+                                 self.h_out[rows, 3].copy(), self.h_out[rows, 4].astype(np.int64),
+                                 self.h_out[rows, 5] != 0.0)  # fmt: skip
+        self.h_status[rows] = 2
         return out
 
     def _prune(self) -> None:
@@ -401,13 +477,11 @@ class AidedFilter:
         pending = np.flatnonzero(self.h_status[:keep_from] != 2)
         if pending.size:  # unreported rows stay (collect reports them)
             keep_from = int(pending[0])
-        if keep_from == 0:
+        if keep_from < max(256, n // 2):  # amortized: shift only when much can go
             return
         k = n - keep_from
-        for a in (self.h_m, self.h_kind, self.h_z, self.h_r, self.h_dim, self.h_status,
-                  self.h_out):  # fmt: skip
+        for a in self._h_arrays():
             a[:k] = a[keep_from:n].copy()
-        del self.uids[:keep_from]
         self.h_n = k
 
     def _slot(self, m: int) -> int:

@@ -66,7 +66,6 @@ def initial_covariance(model: FilterModel, lat: float, lon: float, position: Arr
     floor = np.repeat(FLOOR_SIGMA, 3)
     s = np.where(s > 0, s, floor)
     j = initial_jacobian(lat, lon)
-    n = model.layout.n
     p0 = np.diag(np.asarray(model.sigma0, dtype=np.float64) ** 2)
     p0[:9, :9] = j @ np.diag(s**2) @ j.T
     return 0.5 * (p0 + p0.T)

@@ -83,8 +83,11 @@ def _omega_cross(v):
 
 @jit
 def body_rate(c, da_raw, period, est, off):
-    """``ω̂_eb^B`` (3,) and its Jacobian ``∂ω̂_eb/∂x`` (3, n): the mean rate of the cycle of
-    ``da_raw`` corrected by the estimates, minus the Earth rate with the attitude ``c``."""
+    """``ω̂_eb^B`` (3,) and its Jacobian ``∂ω̂_eb/∂x`` (3, n).
+
+    The mean rate of the cycle of ``da_raw`` corrected by the estimates, minus the Earth rate
+    with the attitude ``c``.
+    """
     n = est.shape[0]
     jw = np.zeros((3, n))
     w = np.empty(3)
@@ -164,8 +167,11 @@ def _frame_rotation(lat, alt):
 
 @jit
 def gnss_velocity_model(r, v, c, t, est, off, lever, da_raw, period, v_meas_ned):
-    """GNSS antenna velocity relative to the Earth: ``(ν, H)`` in NED of the estimated
-    antenna position (m/s). ``v_meas_ned``: the measured velocity in NED axes."""
+    """GNSS antenna velocity relative to the Earth: ``(ν, H)`` (m/s).
+
+    In NED of the estimated antenna position; ``v_meas_ned``: the measured velocity in NED
+    axes.
+    """
     n = est.shape[0]
     c_e = _ecef_rot(t)
     w, jw = body_rate(c, da_raw, period, est, off)

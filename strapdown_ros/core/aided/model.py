@@ -60,8 +60,10 @@ F64 = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class StateOptions:
-    """Which optional states to model: ``True`` always, ``False`` never, ``None`` when the
-    error model has the term (a σ > 0)."""
+    """Which optional states to model.
+
+    ``True`` always, ``False`` never, ``None`` when the error model has the term (a σ > 0).
+    """
 
     gauss_markov: bool | None = None
     scale_factors: bool | None = None
@@ -126,8 +128,11 @@ def build_model(
     sensors: SensorModels,
     options: StateOptions = StateOptions(),
 ) -> FilterModel:
-    """The filter model matching the error models ``imu`` (at IMU period ``period_s``) and
-    ``sensors``; ``options`` choose the optional states (docs/theory/aided_ins.md §3)."""
+    """The filter model matching the error models ``imu`` and ``sensors``.
+
+    ``period_s``: the IMU period; ``options`` choose the optional states
+    (docs/theory/aided_ins.md §3).
+    """
     g, a = imu.gyro, imu.accel
     gm = _on(options.gauss_markov, bool(np.any(g.bias_instability > 0)
                                         or np.any(a.bias_instability > 0)))  # fmt: skip
