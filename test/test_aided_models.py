@@ -148,8 +148,8 @@ def _check(h_model: np.ndarray, h_num: np.ndarray, rel: float, ignore: slice | N
     diff = np.abs(h_model - h_num)
     if ignore is not None:
         diff[:, ignore] = 0.0
-    assert diff.max() <= rel * scale, (diff.max() / scale, np.unravel_index(diff.argmax(),
-                                                                            diff.shape))  # fmt: skip
+    worst = np.unravel_index(diff.argmax(), diff.shape)
+    assert diff.max() <= rel * scale, (diff.max() / scale, worst)
 
 
 LEVER = np.array([1.2, -0.4, -1.5])

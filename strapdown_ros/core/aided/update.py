@@ -178,3 +178,8 @@ def reset_attitude(p, dphi):
     for i in range(n):
         for j in range(3):
             p[i, 6 + j] = cols[i, j]
+    for i in range(6, 9):
+        for j in range(n):
+            s = 0.5 * (p[i, j] + p[j, i])
+            p[i, j] = s
+            p[j, i] = s
