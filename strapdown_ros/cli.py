@@ -214,15 +214,15 @@ def _generate(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from strapdown_ros.config import load_scenario
-    from strapdown_ros.stages.reference import build_trajectory, natural_duration, output_cycles
+    from strapdown_ros.plan import resolve_plan
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
-    trajectory = build_trajectory(scenario)
-    natural = natural_duration(scenario, trajectory)
-    duration = output_cycles(scenario, trajectory) * scenario.period_ns * 1e-9
+    plan = resolve_plan(scenario, topics=False)  # the topic plans cannot reject a scenario
+    plan.trajectory  # noqa: B018 - built: validates the trajectory's parameters
     print(
-        f"{scenario.path}: valid; {scenario.trajectory.kind} trajectory of {natural:g} s, "
-        f"{duration:g} s at {scenario.rate_hz:g} Hz (oversample {scenario.oversample}), "
+        f"{scenario.path}: valid; {scenario.trajectory.kind} trajectory of "
+        f"{plan.natural_duration_s:g} s, {plan.duration_s:g} s at {scenario.rate_hz:g} Hz "
+        f"(oversample {scenario.oversample}), "
         f"gravity {scenario.gravity_model}"
     )
     return 0

@@ -37,13 +37,14 @@ from pathlib import Path
 
 import numpy as np
 
-from strapdown_ros.config import Scenario, load_scenario
+from strapdown_ros.config import load_scenario
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.plan.chain import live_graph
 
 __all__ = [
     "PipelineError",
     "PipelineResult",
     "ReplayResult",
-    "expected_counts",
     "replay_into_navigator",
     "run_pipeline",
 ]
@@ -138,56 +139,6 @@ class PipelineResult:
                 f"{n} {s:.1f} s" for n, s in self.cpu_s.items()
             ) + f" (total {sum(self.cpu_s.values()):.1f} s, start-up included)"
         return text
-
-
-def expected_counts(scenario: Scenario) -> dict[str, int]:
-    """Message count of every topic the scenario produces (what ``generate`` writes)."""
-    from strapdown_ros.config.navigator import INPUT_STREAMS, navigator_spec
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
-    from strapdown_ros.topics import produced_keys
-
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    m_var = cycles - 1 - (cycles - 1) % 2  # the variation ends at the last even cycle < M
-    imu_counts = {
-        "reference_imu": cycles,
-        "variation_imu": m_var,
-        "variation_reference_imu": m_var,
-        "variation_imu_measured": m_var,
-    }
-    names = dict(scenario.recording.topics)
-    if scenario.imu_errors is not None:  # the measured IMU: its input's count, its own name
-        source, measured = scenario.imu_errors.topics(names)
-        imu_counts["variation_imu_measured"] = next(
-            n for k, n in imu_counts.items() if names[k] == source
-        )
-        names["variation_imu_measured"] = measured
-    per_key = {
-        "clock": cycles + 1,
-        "reference_odom": cycles + 1,
-        "reference_fix": cycles + 1,
-        "variation_odom": m_var + 1,
-        "variation_fix": m_var + 1,
-        "variation_reference_odom": m_var + 1,
-        **imu_counts,
-    }
-    st = navigator_spec(scenario)
-    if st is not None:
-        key = next(k for k, v in scenario.recording.topics.items() if v == st.imu_topic)
-        assert key in INPUT_STREAMS
-        outputs = imu_counts[key] // st.n + 1
-        for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude"):
-            per_key[f"navigator_{k}"] = outputs
-    from strapdown_ros.stages.aiding import aiding_expected_counts
-
-    out = {names[k]: per_key[k] for k in produced_keys(scenario)}
-    out.update(aiding_expected_counts(scenario, cycles))  # issue 16
-    # derived topics (TF, map-frame odometry, increments: docs/interface.md)
-    from strapdown_ros.stages.frames import FramesStage, derived_counts
-
-    static = FramesStage(scenario, cycles=cycles).variation_is_static()
-    produced = {k: per_key[k] for k in produced_keys(scenario)}
-    out.update(derived_counts(scenario, produced, variation_static=static))
-    return out
 
 
 def _die_with_parent() -> None:  # pragma: no cover - runs in the child
@@ -333,17 +284,15 @@ def run_pipeline(
         ``out`` exists and ``force`` is false.
     """
     from strapdown_ros.bag.reader import read_bag
-    from strapdown_ros.config.navigator import navigator_spec
-    from strapdown_ros.stages.aiding import aiding_spec
 
     t_start = time.monotonic()
     scenario = load_scenario(scenario_path, list(overrides), duration_s)
     out = Path(out)
     if out.exists() and not force:
         raise FileExistsError(f"{out} exists already; not overwriting (use --force)")
-    expected = expected_counts(scenario)
-    topics = scenario.recording.topics
-    data_s = (max(expected.get(topics["reference_odom"], 1), 1) - 1) * scenario.period_ns * 1e-9
+    plan = resolve_plan(scenario)
+    expected = plan.counts()
+    data_s = plan.duration_s
     if flow_control is None:
         flow_control = rate_factor > 1 or rate_factor <= 0
     if timeout_s is None:
@@ -357,33 +306,13 @@ def run_pipeline(
     if duration_s is not None:
         common.append(f"duration_s:={float(duration_s)}")
 
-    # Subscriptions per topic: the recorder on every produced topic, plus the pipeline's nodes.
-    subs = dict.fromkeys(expected, 1)
-    nav = navigator_spec(scenario)
-    if scenario.variation is not None:
-        subs[topics["reference_imu"]] += 1
-        subs[topics["reference_odom"]] += 1
-    if scenario.imu_errors is not None:
-        subs[scenario.imu_errors.topics(topics)[0]] += 1
-    aiding_topics = aiding_spec(scenario).topics() if aiding_spec(scenario) else []
-    if aiding_topics:
-        subs[topics["reference_odom"]] += 1
-    if nav is not None:
-        subs[nav.imu_topic] += 1
-        if nav.truth_topic:
-            subs[nav.truth_topic] += 1
+    # The chain's nodes and the subscriptions each topic will have (the recorder's and the
+    # nodes reading it).
+    nodes, subs = live_graph(plan)
 
-    def per_topic(names: list[str]) -> str:
+    def per_topic(names: Sequence[str]) -> str:
         items = [f"'{t}={subs[t]}'" for t in names if t in subs]
         return "subscribers_per_topic:=[" + ",".join(items) + "]"
-
-    # each node also publishes what FramesStage derives from its outputs (TF, map odometry)
-    from strapdown_ros.stages.frames import FramesStage, node_derived_topics
-
-    frames = FramesStage(scenario, cycles=max(expected.get(topics["reference_odom"], 1) - 1, 0))
-
-    def with_derived(names: list[str], static: bool = False) -> list[str]:
-        return names + list(node_derived_topics(frames, names, static=static))
 
     def ros_args(*params: str) -> list[str]:
         args = ["--ros-args"]
@@ -412,6 +341,7 @@ def run_pipeline(
     if flow_control:
         # The nodes may wait for the slowest consumer: no idle stop in the middle of a run.
         node_params += ["report_progress:=true", "idle_timeout_s:=120.0"]
+    *downstream, source = nodes
     try:
         rec_params = [f"output:={out}", "stop_when_done:=true", "force:=" + str(force).lower()]
         if flow_control:
@@ -420,54 +350,20 @@ def run_pipeline(
             rec_params.append(f"storage:={storage}")
         say(f"ROS_DOMAIN_ID={domain}; logs in {log_dir}")
         start("bag_recorder", *rec_params)
-        if nav is not None:
-            outs = [
-                topics[f"navigator_{k}"]
-                for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude")
-            ]
-            node = start("navigator_node", per_topic(with_derived(outs)), *node_params)
-            flow_nodes.append("navigator_node")
-            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
-            say("navigator_node subscribed")
-        if aiding_topics:  # issue 16
-            node = start("aiding_node", per_topic(aiding_topics), *node_params)
-            flow_nodes.append("aiding_node")
-            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
-            say("aiding_node subscribed")
-        if scenario.imu_errors is not None:
-            measured = scenario.imu_errors.topics(topics)[1]
-            node = start("imu_model_node", per_topic(with_derived([measured])), *node_params)
-            flow_nodes.append("imu_model_node")
-            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
-            say("imu_model_node subscribed")
-        if scenario.variation is not None:
-            outs = [
-                topics[k]
-                for k in (
-                    "variation_imu",
-                    "variation_odom",
-                    "variation_fix",
-                    "variation_reference_imu",
-                    "variation_reference_odom",
-                )
-            ]
-            node = start("variation_node", per_topic(with_derived(outs)), *node_params)
-            flow_nodes.append("variation_node")
-            node.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
-            say("variation_node subscribed")
-        traj_topics = [topics[k] for k in ("reference_imu", "reference_odom", "reference_fix")]
-        time_source = "wall"
-        if scenario.recording.clock:
-            traj_topics.append(topics["clock"])
-            time_source = "sim"
+        for node in reversed(downstream):  # downstream first: each waits for its subscribers
+            child = start(node.executable, per_topic(node.published), *node_params)
+            flow_nodes.append(node.executable)
+            child.wait_for("subscribed to", STARTUP_TIMEOUT_S, children)
+            say(f"{node.executable} subscribed")
+        time_source = "sim" if scenario.recording.clock else "wall"
         pace = f"rate_factor {rate_factor:g}" if rate_factor > 0 else "unpaced"
         traj_params = [f"rate_factor:={float(rate_factor)}", "qos_depth:=10000"]
         if flow_control:
             pace += ", flow control on " + ", ".join(flow_nodes)
             traj_params.append("flow_nodes:=[" + ",".join(f"'{n}'" for n in flow_nodes) + "]")
-        say(f"trajectory_node: {data_s:g} s of data, {pace}")
+        say(f"{source.executable}: {data_s:g} s of data, {pace}")
         traj = start(
-            "trajectory_node", per_topic(with_derived(traj_topics, static=True)),
+            source.executable, per_topic(source.published),
             f"time_source:={time_source}",
             "wait_for_all_topics:=false", *traj_params,
         )  # fmt: skip
@@ -581,12 +477,12 @@ def replay_into_navigator(
     ``navigator`` section, else the node's defaults) processes them; ``bag_recorder`` writes
     ``/navigator/*`` to ``out``. The recording is then compared payload for payload with the
     offline navigator on the same messages (the bag's own ``/navigator/*`` topics when they were
-    written with the same settings, else :func:`strapdown_ros.stages.navigation.navigate_messages`).
+    written with the same settings, else :func:`strapdown_ros.stages.navigator.navigate_messages`).
     """
     from strapdown_ros.bag.reader import read_bag
     from strapdown_ros.config import DEFAULT_TOPICS
     from strapdown_ros.config.navigator import NavigatorSpec, resolve_navigator
-    from strapdown_ros.stages.navigation import OUTPUT_TOPICS, navigate_messages
+    from strapdown_ros.stages.navigator import OUTPUT_TOPICS, navigate_messages
 
     t_start = time.monotonic()
     out = Path(out)

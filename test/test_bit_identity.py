@@ -19,7 +19,7 @@ import pytest
 
 from strapdown_ros.config import DEFAULT_TOPICS
 from strapdown_ros.config.aiding import AIDING_TOPICS
-from strapdown_ros.stages.frames import ODOM_KEYS
+from strapdown_ros.stages.tf import ODOM_KEYS
 
 REPO = Path(__file__).resolve().parent.parent
 TOOL = REPO / "tools" / "compare_generate.py"

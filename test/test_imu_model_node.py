@@ -2,7 +2,7 @@
 
 A bag is generated offline for 2 s of the default scenario (its variation, no navigator). Its
 ideal ``/variation/imu`` is the input; the reference output is computed in this process by
-:func:`~strapdown_ros.stages.measurement.measured_imu_fields` on the whole stream at once
+:func:`~strapdown_ros.stages.imu_errors.measured_imu_fields` on the whole stream at once
 (one model, one call) and serialized with the project's codec. Then, as separate processes over
 real DDS in this session's ROS domain:
 
@@ -15,7 +15,7 @@ real DDS in this session's ROS domain:
    offline noise: they differ from the uninterrupted offline run by quantization only);
 3. invalid parameters or scenario: exit 2 naming the key.
 
-:class:`~strapdown_ros.stages.measurement.MeasuredImuStream` (no DDS) is also checked in-process.
+:class:`~strapdown_ros.stages.imu_errors.ImuErrorsStage` (no DDS) is also checked in-process.
 Every wait has a timeout; children are killed at teardown.
 """
 
@@ -38,9 +38,10 @@ from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.core.imu_errors import ImuErrorModel
 from strapdown_ros.messages import imu_increments
-from strapdown_ros.stages.measurement import (
-    MeasuredImuStream,
-    generate_measured_stream,
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.plan.chain import offline_stages
+from strapdown_ros.stages.imu_errors import (
+    ImuErrorsStage,
     measured_imu_fields,
 )
 
@@ -145,12 +146,12 @@ def test_measured_messages_follow_the_model_and_rep145(bag, scenario, offline):
 def test_stream_message_by_message_equals_offline(bag, scenario, offline):
     """The node's code path (one payload at a time) equals one call on the whole stream."""
     _, contents = bag
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     got = [stream.on_payload(p) for p in contents.topics[IN].payloads]
     assert got == offline
     assert stream.published == M_VAR and stream.last_cycle == M_VAR and stream.runs == 1
     # generate's path: batches of other sizes.
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     d = contents.topics[IN]
     out = []
     for a, b in ((0, 7), (7, 8), (8, 300), (300, M_VAR)):
@@ -166,13 +167,13 @@ def test_stream_payload_batches_equal_offline(bag, scenario, offline):
     malformed payload falls back to one by one: only that message is dropped and reported."""
     _, contents = bag
     payloads = [bytes(p) for p in contents.topics[IN].payloads]
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     got = []
     for a in range(0, len(payloads), 9):
         got += stream.on_payloads(payloads[a : a + 9])
     assert got == offline and stream.runs == 1
     errors: list[str] = []
-    stream = MeasuredImuStream(scenario, error=errors.append)
+    stream = ImuErrorsStage(scenario, error=errors.append)
     got = stream.on_payloads(payloads[:5] + [b"\x00\x01\x00\x00garbage"] + payloads[5:12])
     assert got == offline[:12] and len(errors) == 1 and "decode" in errors[0]
 
@@ -181,7 +182,7 @@ def test_stream_restart_offgrid_and_late_start(bag, scenario, offline):
     _, contents = bag
     payloads = contents.topics[IN].payloads
     warn, error = [], []
-    stream = MeasuredImuStream(scenario, warn=warn.append, error=error.append)
+    stream = ImuErrorsStage(scenario, warn=warn.append, error=error.append)
     # Late start at cycle 11: advanced over 1..10; without quantization differences the noise
     # is the offline one, so the result is within a quantum (here: a few 1e-9 rad) of it.
     first = stream.on_payload(payloads[10])
@@ -219,12 +220,13 @@ def test_the_scenario_checks_the_topics():
         ["variation=null", "navigator=null", "imu_errors={input_topic: /reference/imu}"],
         DURATION_S,
     )
-    stream = generate_measured_stream(ok)
-    assert stream is not None and stream.input_topic == "/reference/imu"
-    assert stream.output_topic == "/variation/imu_measured"
+    stages = dict(offline_stages(resolve_plan(ok)))
+    assert stages["imu_errors"].input_topic == "/reference/imu"
+    assert stages["imu_errors"].output_topic == "/variation/imu_measured"
     with pytest.raises(ScenarioError, match="imu_errors.output_topic"):
         load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
-    assert generate_measured_stream(load_scenario(SCENARIO, ["imu_errors=null"])) is None
+    plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null"]))
+    assert "imu_errors" not in dict(offline_stages(plan))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -339,7 +341,7 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     noise = np.std(np.asarray(b.angular_velocity) - contents[IN].angular_velocity[:1], axis=0)
     assert np.all(noise * T / 1e-9 > 100)  # the tolerance above is far below the noise
     # The exact expectation: the same message sequence through the same code, in-process.
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     order = [m for m in range(1, M_VAR + 1) if m != DROP]
     i = order.index(SWAP)
     order[i], order[i + 1] = order[i + 1], order[i]

@@ -29,7 +29,7 @@ from strapdown_ros.core.navigation import (
 )
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 

@@ -4,7 +4,7 @@
 1. ``generate`` with the default ``navigator`` section writes the five navigator topics; their
    values agree with an independent offline computation from the bag's own variation messages
    (``stream_from_messages`` → core navigator → ``navigation_errors`` on the E0 truth).
-2. :class:`NavigationStage` fed the bag's payloads one at a time (live order) publishes exactly
+2. :class:`NavigatorStage` fed the bag's payloads one at a time (live order) publishes exactly
    the bag's payloads; with a dropped and a swapped IMU message it logs them, never integrates
    across the gap, and restarts from the truth.
 3. trajectory_node → variation_node → navigator_node → recorder over real DDS: message for
@@ -25,12 +25,12 @@ from node_testing import executable, scenario_without_tf
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
-from strapdown_ros.config import load_scenario
-from strapdown_ros.config.navigator import navigator_spec
+from strapdown_ros.config import load_scenario, navigator_spec
 from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.messages import stream_from_messages
-from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.navigator import NavigatorStage
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
@@ -106,8 +106,8 @@ def test_generate_writes_navigator_streams(bag, scenario) -> None:
 def _solver(scenario, warnings):
     """The stage as navigator_node builds it (period from the stamps, end from the scenario)."""
     spec = navigator_spec(scenario)
-    return NavigationStage.for_scenario(
-        scenario, end_ns=input_end_ns(scenario, spec.imu_topic), warn=warnings.append,
+    return NavigatorStage.for_scenario(
+        scenario, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), warn=warnings.append,
         error=warnings.append,
     )  # fmt: skip
 
@@ -233,8 +233,8 @@ def test_scenario_rejects_bad_navigator_sections() -> None:
 
 
 def test_initial_errors_show_in_the_first_output(scenario) -> None:
-    from strapdown_ros.stages.navigation import initial_state_from_truth
-    from strapdown_ros.stages.reference import generate_reference
+    from strapdown_ros.stages.navigator import initial_state_from_truth
+    from strapdown_ros.stages.trajectory import generate_reference
 
     s = load_scenario(
         SCENARIO,

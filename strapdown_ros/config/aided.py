@@ -8,6 +8,7 @@ periods on the IMU grid). The filter: docs/aided.md; its theory: docs/theory/aid
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Iterable, Mapping
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, field_validator
@@ -21,7 +22,7 @@ from strapdown_ros.config.base import (
 )
 
 if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
+    from strapdown_ros.config.aiding import AidingSpec
 
 __all__ = [
     "AIDED_SENSORS",
@@ -213,27 +214,25 @@ class AidedSpec(Model):
         """Covariance propagation period (ns)."""
         return self.period_ns(self.covariance_rate_hz)
 
-    def used_sensors(self, scenario: Scenario) -> list[str]:
-        """The measurements used, canonical order: ``sensors`` (or every one the ``aiding``
-        section enables)."""
-        aiding = scenario.aiding
-        enabled = set() if aiding is None else set(aiding.sensors())
+    def used_sensors(self, enabled: Collection[str]) -> list[str]:
+        """The measurements used, canonical order: ``sensors`` (or every one whose ``aiding``
+        sensor is in ``enabled``)."""
         if self.sensors is None:
             return [s for s in AIDED_SENSORS if SENSOR_SOURCE[s] in enabled]
         return [s for s in AIDED_SENSORS if s in self.sensors]
 
-    def output_topics(self, scenario: Scenario) -> dict[str, str]:
-        """Output key -> topic name for the used sensors (prefix + name, or ``topics``)."""
-        keys = aided_output_keys(self.used_sensors(scenario))
+    def output_topics(self, sensors: Iterable[str]) -> dict[str, str]:
+        """Output key -> topic name for the measurements ``sensors`` (prefix + name, or
+        ``topics``)."""
+        keys = aided_output_keys(sensors)
         return {k: self.topics.get(k, f"{self.topic_prefix}/{keys[k]}") for k in keys}
 
-    def resolved_imu_topic(self, scenario: Scenario) -> str | None:
-        """``imu_topic`` or the ``imu_errors`` output topic (None without either)."""
+    def resolved_imu_topic(self, measured: tuple[str, str] | None) -> str | None:
+        """``imu_topic``, or the output of the ``imu_errors`` model (``measured``: its input and
+        output topics; None without one)."""
         if self.imu_topic is not None:
             return self.imu_topic
-        if scenario.imu_errors is None:
-            return None
-        return scenario.imu_errors.topics(scenario.recording.topics)[1]
+        return None if measured is None else measured[1]
 
 
 def aided_output_keys(sensors: Any) -> dict[str, str]:
@@ -245,15 +244,24 @@ def aided_output_keys(sensors: Any) -> dict[str, str]:
     return out
 
 
-def aided_spec(scenario: Scenario) -> AidedSpec | None:
+def aided_spec(scenario: Any) -> AidedSpec | None:
     """The scenario's enabled ``aided`` section (None without one or with ``enabled: false``)."""
     spec = getattr(scenario, "aided", None)
     return spec if spec is not None and spec.enabled else None
 
 
-def check_aided(scenario: Scenario) -> None:
+def check_aided(
+    spec: AidedSpec | None,
+    *,
+    topics: Mapping[str, str],
+    measured: tuple[str, str] | None,
+    aiding: AidingSpec | None,
+    period_ns: int,
+) -> None:
     """Cross-field rules of ``aided`` (called by the scenario's validation).
 
+    ``topics``: ``recording.topics``; ``measured``: the ``imu_errors`` model's input and output
+    topics (None without one); ``aiding``: the aiding section; ``period_ns``: the IMU period.
     The IMU topic must be the output of an ``imu_errors`` model on the reference IMU (the
     aiding lever arms are measured from the reference IMU); the truth topic the reference
     Odometry; the sensors used enabled in ``aiding``; the output and covariance periods whole
@@ -264,14 +272,10 @@ def check_aided(scenario: Scenario) -> None:
     ScenarioError
         Naming the key, e.g. ``aided.imu_topic``.
     """
-    spec = aided_spec(scenario)
-    if spec is None:
+    if spec is None or not spec.enabled:
         return
-    topics = scenario.recording.topics
     reference = topics["reference_imu"]
-    errors = scenario.imu_errors
-    measured = None if errors is None else errors.topics(topics)
-    imu = spec.resolved_imu_topic(scenario)
+    imu = spec.resolved_imu_topic(measured)
     if imu is None:
         raise ScenarioError(
             "aided.imu_topic",
@@ -293,14 +297,13 @@ def check_aided(scenario: Scenario) -> None:
             f"{spec.truth_topic} is not the reference truth {topics['reference_odom']} (the "
             "filter's errors are those of the reference IMU)",
         )
-    aiding = scenario.aiding
     enabled = set() if aiding is None else set(aiding.sensors())
     for s in spec.sensors or []:
         if SENSOR_SOURCE[s] not in enabled:
             raise ScenarioError(
                 "aided.sensors", f"{s} needs aiding.{SENSOR_SOURCE[s]} (not enabled)"
             )
-    t_ns = scenario.period_ns
+    t_ns = period_ns
     for key, rate, what in (
         ("aided.output_rate_hz", spec.output_rate_hz, "output"),
         ("aided.covariance_rate_hz", spec.covariance_rate_hz, "covariance"),
@@ -315,7 +318,7 @@ def check_aided(scenario: Scenario) -> None:
     if aiding is not None:
         used |= set(aiding.topics())
     used.add(imu)
-    for key, topic in spec.output_topics(scenario).items():
+    for key, topic in spec.output_topics(spec.used_sensors(enabled)).items():
         if topic in used:
             raise ScenarioError(f"aided.topics.{key}", f"{topic} is another stream's topic")
 

@@ -133,7 +133,7 @@ class BatchedInputNode(Node):
 
     @property
     def input_events(self) -> Any:
-        """The stage's :class:`~strapdown_ros.stages.checks.InputEvents` (None: none)."""
+        """The stage's :class:`~strapdown_ros.stages.intake.InputEvents` (None: none)."""
         return getattr(getattr(self, "solver", None), "events", None)
 
     def interrupted_summary(self) -> str:

@@ -1,6 +1,6 @@
 """``aiding_node``: GNSS, barometer, magnetometer and wheel odometer, live (issue 16).
 
-A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStream`, the object
+A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStage`, the object
 ``strapdown-sim generate`` feeds: raw truth Odometry payloads in (default
 ``/reference/odom``), in batches, serialized aiding messages out (``/gnss/fix``, ``/gnss/vel``,
 ``/baro/pressure``, ``/mag``, ``/wheel/twist`` for the enabled sensors), byte for byte the
@@ -25,7 +25,8 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStream, aiding_spec
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStage, aiding_spec
 
 NODE_NAME = "aiding_node"
 
@@ -50,12 +51,14 @@ class AidingNode(BatchedInputNode):
         self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last truth message")
         log = self.get_logger()
-        self.stream = AidingStream(
-            scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg)
-        )
+        self.stream = AidingStage(
+            scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg),
+            error=lambda msg: log.error(msg),
+        )  # fmt: skip
         for topic in self.stream.topics:
             self.add_output(topic, message_class(AIDING_MSGTYPES[topic]), self.qos)
-        self.last_truth_ns = self._last_truth_stamp(scenario)
+        plan = resolve_plan(scenario)
+        self.last_truth_ns = plan.last_stamp(scenario.recording.topics["reference_odom"])
         self._subscription = None
         self._started = False
         log.info(
@@ -63,13 +66,6 @@ class AidingNode(BatchedInputNode):
             f"{', '.join(spec.sensors())}; input {self.truth_topic}; outputs "
             f"{', '.join(self.stream.topics)}"
         )
-
-    @staticmethod
-    def _last_truth_stamp(scenario: Any) -> int:
-        from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-        cycles = output_cycles(scenario, build_trajectory(scenario))
-        return scenario.start_time_ns + cycles * scenario.period_ns
 
     # -- BatchedInputNode hooks -----------------------------------------------------------------
 

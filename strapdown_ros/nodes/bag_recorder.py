@@ -58,9 +58,11 @@ from strapdown_ros.nodes._common import (
     message_class,
     run_node,
 )
-from strapdown_ros.nodes._frames import tf_unavailable
-from strapdown_ros.stages.frames import STATIC_QOS, FramesStage
-from strapdown_ros.topics import produced_topics, spec_topics
+from strapdown_ros.nodes._tf import tf_unavailable
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.plan.metadata import bag_custom_data
+from strapdown_ros.stages.tf import STATIC_QOS, TFStage
+from strapdown_ros.topics import spec_topics
 
 NODE_NAME = "bag_recorder"
 RELIABILITIES = ("auto", "reliable", "best_effort")
@@ -145,6 +147,7 @@ class BagRecorder(SignalStop, Node):
             )
 
         scenario = load_scenario(scenario_path, overrides) if scenario_path else None
+        plan = resolve_plan(scenario) if scenario is not None else None
         if storage == "":
             storage = scenario.recording.storage if scenario is not None else "mcap"
         if storage not in STORAGES:
@@ -158,29 +161,26 @@ class BagRecorder(SignalStop, Node):
 
         if topic_specs:
             wanted = _parse_topics(topic_specs)
-        elif scenario is not None:
-            wanted = dict(produced_topics(scenario))
+        elif plan is not None:
+            wanted = plan.topic_types()
         else:
             wanted = dict(spec_topics())
         # Without tf2_msgs, /tf and /tf_static cannot be received: derived here from the recorded
         # Odometry with the code generate uses (same bytes), and said so in the bag.
-        self._derive: FramesStage | None = None
+        self._derive: TFStage | None = None
         self._derived_tf: dict[str, Handler | None] = {}
-        if scenario is not None and not topic_specs:
+        if plan is not None and not topic_specs:
             tf_topics = [n for n, m in wanted.items() if m == TF_MESSAGE]
             error = tf_unavailable() if tf_topics else None
             if error is not None:
-                from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-                cycles = output_cycles(scenario, build_trajectory(scenario))
-                self._derive = FramesStage(scenario, cycles=cycles)
+                self._derive = TFStage(plan)
                 for name in tf_topics:
                     wanted.pop(name)
                     self._derived_tf[name] = None
                 self.get_logger().warning(
                     f"tf2_msgs/msg/TFMessage is not importable ({error}): "
                     f"{', '.join(tf_topics)} cannot be received; they are derived from the "
-                    "recorded Odometry with the code generate uses (FramesStage), and the bag's "
+                    "recorded Odometry with the code generate uses (TFStage), and the bag's "
                     "custom_data says so (tf: derived by bag_recorder)"
                 )
         self.topics: dict[str, _Topic] = {}
@@ -190,14 +190,9 @@ class BagRecorder(SignalStop, Node):
             self.topics[name] = _Topic(name, msgtype)
         self.custom_data = {"generator": "strapdown_ros", "recorder": NODE_NAME}
         self.log_delays: dict[str, int] = {}  # issue 16: GNSS latency
-        if scenario is not None:
-            from strapdown_ros.stages.aiding import aiding_log_delays
-
-            self.log_delays = aiding_log_delays(scenario)
-        if scenario is not None:
-            from strapdown_ros.generate import bag_custom_data
-
-            self.custom_data = {**bag_custom_data(scenario), "recorder": NODE_NAME}
+        if plan is not None:
+            self.log_delays = plan.log_delays()
+            self.custom_data = {**bag_custom_data(plan), "recorder": NODE_NAME}
         if self._derive is not None:
             self.custom_data["tf"] = "derived by bag_recorder from the recorded Odometry"
         self.recording: Recording | None = None

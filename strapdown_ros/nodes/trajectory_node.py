@@ -2,8 +2,8 @@
 
 It publishes exactly the messages ``strapdown-sim generate`` writes for the reference stream,
 in the same order: the very CDR payloads of
-:func:`strapdown_ros.stages.reference.reference_batch_chunks` (pieces of
-:func:`~strapdown_ros.stages.reference.reference_batches`), in
+:func:`strapdown_ros.stages.trajectory.reference_batch_chunks` (pieces of
+:func:`~strapdown_ros.stages.trajectory.reference_batches`), in
 :func:`~strapdown_ros.bag.batches.merge_order`, published raw. The message with stamp ``t`` is
 published at wall time ``start + (t - t0) / rate_factor``. Parameters and behaviour:
 docs/nodes.md.
@@ -46,10 +46,11 @@ from strapdown_ros.nodes._common import (
     run_node,
     wait_for_subscriptions,
 )
-from strapdown_ros.nodes._frames import derived_outputs, static_qos
+from strapdown_ros.nodes._tf import derived_outputs, static_qos
 from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
-from strapdown_ros.stages.frames import FramesStage
-from strapdown_ros.stages.reference import build_trajectory, output_cycles, reference_batch_chunks
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.tf import TFStage
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 NODE_NAME = "trajectory_node"
 TIME_SOURCES = ("sim", "wall")
@@ -136,8 +137,6 @@ class TrajectoryNode(Node):
                 "time_source",
                 f"must be one of: {', '.join(TIME_SOURCES)}; got {self.time_source!r}",
             )
-        self.trajectory = build_trajectory(scenario)  # validates the trajectory's parameters
-        self.cycles = output_cycles(scenario, self.trajectory)
 
         topics = dict(scenario.recording.topics)
         for name, key in TOPIC_PARAMETERS.items():
@@ -166,6 +165,9 @@ class TrajectoryNode(Node):
 
         # The /clock batch exists exactly in 'sim' mode, whatever recording.clock says.
         self.scenario = scenario.with_recording(topics=topics, clock=self.time_source == "sim")
+        self.plan = resolve_plan(self.scenario)
+        self.plan.trajectory  # noqa: B018 - built now: validates the trajectory's parameters
+        self.cycles = self.plan.cycles
         self.imu_topic = topics["reference_imu"]
         data_topics = [topics[k] for k in ("reference_odom", "reference_fix", "reference_imu")]
         all_topics = ([topics["clock"]] if self.scenario.recording.clock else []) + data_topics
@@ -177,8 +179,8 @@ class TrajectoryNode(Node):
 
         self._msgtypes = self._topic_types()
         # TF (/tf_static, map -> base_link) and map-frame odometry of the reference
-        self.frames = FramesStage(self.scenario, cycles=self.cycles, variation_tf=False)
-        self._derived = derived_outputs(self, self.frames, list(self._msgtypes), static=True)
+        self.frames = TFStage(self.plan, variation_tf=False)
+        self._derived = derived_outputs(self, self.plan, list(self._msgtypes), static=True)
         self._static_topic = self._derived.pop(self.frames.tf_static_topic, None) and (
             self.frames.tf_static_topic
         )
@@ -235,7 +237,7 @@ class TrajectoryNode(Node):
             executor.spin_once(timeout_sec=timeout_s)
             last_spin[0] = time.monotonic()
 
-        pieces = _Pieces(self._with_frames(reference_batch_chunks(self.scenario, self.trajectory)))
+        pieces = _Pieces(self._with_frames(reference_batch_chunks(self.plan)))
         try:
             if not self._wait_for_subscribers(spin):
                 return EXIT_FAILURE

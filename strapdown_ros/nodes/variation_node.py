@@ -28,9 +28,9 @@ from strapdown_ros.nodes._common import (
     qos_from_parameters,
     run_node,
 )
-from strapdown_ros.nodes._frames import derived_outputs
-from strapdown_ros.stages.frames import FramedSolver, FramesStage
-from strapdown_ros.stages.reference import build_trajectory, output_cycles
+from strapdown_ros.nodes._tf import derived_outputs
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.tf import SolverWithTF, TFStage
 from strapdown_ros.stages.variation import IMU, ODOM, VariationStage
 
 NODE_NAME = "variation_node"
@@ -58,7 +58,6 @@ class VariationNode(BatchedInputNode):
         if scenario.variation is None:
             raise ScenarioError("variation", "missing: the scenario defines no variation")
         method, gravity = _check_settings(scenario)
-        cycles = output_cycles(scenario, build_trajectory(scenario))
 
         topics = dict(scenario.recording.topics)
         names: dict[str, str] = {}
@@ -80,6 +79,8 @@ class VariationNode(BatchedInputNode):
         self.declare_batched_input("the last cycle")
 
         self.scenario = scenario.with_recording(topics=topics)
+        self.plan = resolve_plan(self.scenario)
+        cycles = self.plan.cycles
         log = self.get_logger()
         self.solver = VariationStage(
             self.scenario,
@@ -99,14 +100,14 @@ class VariationNode(BatchedInputNode):
                 raise ParameterError(names[topic], str(exc)) from exc
         # base_link -> variation_imu (variation truth relative to the reference input) and the
         # map-frame odometry of the outputs
-        frames = FramesStage(self.scenario, offsets=self.solver.offsets, cycles=cycles)
+        frames = TFStage(self.plan, offsets=self.solver.offsets)
         outputs = [topics[k] for k in OUTPUT_PARAMETERS.values()]
-        derived = derived_outputs(self, frames, outputs)
+        derived = derived_outputs(self, self.plan, outputs)
         for topic, msgtype in derived.items():
             self.add_output(topic, message_class(msgtype), self.qos)
-        self.solver = FramedSolver(self.solver, frames, derived, reference_input=ODOM)
+        self.solver = SolverWithTF(self.solver, frames, derived, reference_input=ODOM)
         self._input_subscriptions: list = []
-        m_var = cycles - 1 - (cycles - 1) % 2
+        m_var = self.plan.variation_cycles
         log.info(
             f"scenario {scenario.path} ({scenario.name}): reference cycles 0..{cycles} at "
             f"{scenario.rate_hz:g} Hz, variation cycles 0..{m_var}, method {method}, gravity "

@@ -66,14 +66,17 @@ from strapdown_ros.messages import (
     odometry_state,
     vector3_stamped_fields,
 )
-from strapdown_ros.stages.checks import InputEvents, format_stamp, nonfinite_rows, without_rows
+from strapdown_ros.stages.intake import InputEvents, format_stamp, nonfinite_rows, without_rows
 
 __all__ = [
     "AIDED_MSGTYPES",
     "AidedStage",
     "R_FLOOR",
     "aided_expected_counts",
+    "aided_imu_topic",
     "aided_input_topics",
+    "aided_output_topics",
+    "aided_sensors",
     "aided_topic_types",
 ]
 
@@ -130,21 +133,40 @@ def _require(scenario: Scenario) -> AidedSpec:
     return spec
 
 
+def aided_sensors(scenario: Scenario) -> list[str]:
+    """The measurements the scenario's filter uses (canonical order)."""
+    spec = _require(scenario)
+    return spec.used_sensors(set() if scenario.aiding is None else set(scenario.aiding.sensors()))
+
+
+def aided_output_topics(scenario: Scenario) -> dict[str, str]:
+    """Output key -> topic of the scenario's filter (``odom``, ``nees``, ``nis_baro``, ...)."""
+    return _require(scenario).output_topics(aided_sensors(scenario))
+
+
+def aided_imu_topic(scenario: Scenario) -> str:
+    """The measured IMU topic the filter integrates."""
+    errors = scenario.imu_errors
+    measured = None if errors is None else errors.topics(scenario.recording.topics)
+    imu = _require(scenario).resolved_imu_topic(measured)
+    assert imu is not None  # check_aided
+    return imu
+
+
 def aided_topic_types(scenario: Scenario) -> dict[str, str]:
     """Topic -> message type of the ``/aided/*`` topics of the scenario (empty without one)."""
     spec = aided_spec(scenario)
     if spec is None:
         return {}
     return {t: AIDED_MSGTYPES.get(k, cdr.VECTOR3_STAMPED)
-            for k, t in spec.output_topics(scenario).items()}  # fmt: skip
+            for k, t in aided_output_topics(scenario).items()}  # fmt: skip
 
 
 def aided_input_topics(scenario: Scenario) -> list[str]:
     """The topics the stage reads: the measured IMU, the truth, the sensors used."""
     spec = _require(scenario)
-    imu = spec.resolved_imu_topic(scenario)
-    assert imu is not None
-    return [imu, spec.truth_topic, *(_SOURCE_TOPIC[s] for s in spec.used_sensors(scenario))]
+    return [aided_imu_topic(scenario), spec.truth_topic,
+            *(_SOURCE_TOPIC[s] for s in aided_sensors(scenario))]  # fmt: skip
 
 
 def _merged(windows: Sequence[tuple[int, int]]) -> tuple[tuple[int, int], ...]:
@@ -176,10 +198,10 @@ def aided_expected_counts(scenario: Scenario, cycles: int) -> dict[str, int]:
         return {}
     t0 = scenario.start_time_ns
     t_end = t0 + cycles * scenario.period_ns
-    topics = spec.output_topics(scenario)
+    topics = aided_output_topics(scenario)
     n_out = count_in(t0, t_end, spec.output_period_ns)
     out = {t: n_out for k, t in topics.items() if not k.startswith(("innovation_", "nis_"))}
-    for s in spec.used_sensors(scenario):
+    for s in aided_sensors(scenario):
         n = _sensor_schedule(scenario, s).count(t_end)
         out[topics[f"innovation_{s}"]] = n
         out[topics[f"nis_{s}"]] = n
@@ -227,10 +249,10 @@ class AidedStage:
         self.events = InputEvents(warn, error)
         self.t0 = scenario.start_time_ns
         self.T = scenario.period_ns
-        self.imu_topic = spec.resolved_imu_topic(scenario)
+        self.imu_topic = aided_imu_topic(scenario)
         self.truth_topic = spec.truth_topic
-        self.sensors = spec.used_sensors(scenario)
-        self.topics = spec.output_topics(scenario)
+        self.sensors = aided_sensors(scenario)
+        self.topics = aided_output_topics(scenario)
         self.published = dict.fromkeys(self.topics.values(), 0)
         self.earth_frame = scenario.recording.frames["earth"]
         self.body_frame = scenario.recording.frames["reference_imu"]

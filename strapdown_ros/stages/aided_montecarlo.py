@@ -125,11 +125,11 @@ def seed_overrides(document: dict[str, Any], run: int, base_seed: int = 0) -> li
 
 def reference_pieces(scenario: Scenario) -> list[list[Batch]]:
     """The reference batches of ``generate``'s pieces (only what the runs read)."""
-    from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
+    from strapdown_ros.stages.trajectory import reference_batch_chunks
 
     keep = {scenario.recording.topics["reference_imu"], scenario.recording.topics["reference_odom"]}
     return [[b for b in batches if b.topic in keep]
-            for _, batches in reference_batch_chunks(scenario, build_trajectory(scenario))]
+            for _, batches in reference_batch_chunks(scenario)]
 
 
 def _true_bias(params: ImuErrorParameters, period_s: float, cycles: int) -> tuple[np.ndarray, ...]:
@@ -152,14 +152,13 @@ def _true_bias(params: ImuErrorParameters, period_s: float, cycles: int) -> tupl
 
 def run_aided(scenario: Scenario, pieces: Iterable[list[Batch]] | None = None) -> RunResult:
     """One run (see the module docstring)."""
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.plan.chain import feed_stages, offline_stages
     from strapdown_ros.stages.aided import AidedStage
-    from strapdown_ros.stages.aiding import generate_aiding_stream
-    from strapdown_ros.stages.measurement import generate_measured_stream
 
     if pieces is None:
         pieces = reference_pieces(scenario)
-    measured = generate_measured_stream(scenario)
-    aiding = generate_aiding_stream(scenario)
+    upstream = offline_stages(resolve_plan(scenario), ["imu_errors", "aiding"])
     stage = AidedStage(scenario)
     wanted = {t for k, t in stage.topics.items() if k in (
         "odom", "fix", "nees", "error_position", "error_velocity", "error_attitude",
@@ -167,11 +166,7 @@ def run_aided(scenario: Scenario, pieces: Iterable[list[Batch]] | None = None) -
     ) or k.startswith("nis_")}  # fmt: skip
     out: dict[str, list] = {}
     for batches in pieces:
-        if measured is not None:
-            batches = batches + measured.feed_batches(batches)
-        if aiding is not None:
-            batches = batches + aiding.feed_batches(batches)
-        for b in stage.feed_batches(batches):
+        for b in stage.feed_batches(feed_stages(upstream, batches)):
             if b.topic in wanted:
                 out.setdefault(b.topic, []).extend(b.payloads)
     for b in stage.flush():

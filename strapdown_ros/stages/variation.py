@@ -26,7 +26,7 @@ from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
+from strapdown_ros.stages.intake import InputEvents, nonfinite_rows, stretches, without_rows
 
 __all__ = [
     "IMU",
@@ -370,26 +370,28 @@ class VariationStage:
             self._advance()
         return self._take_batches()
 
-    def feed_batches(
-        self, batches: Sequence[Batch], residuals: dict[str, Residuals] | None = None
-    ) -> list[Batch]:
+    def feed_batches(self, batches: Sequence[Batch]) -> list[Batch]:
         """:meth:`feed` with the reference batches of a ``generate`` piece (other topics are
-        ignored); the residuals of the windows solved are put in ``residuals``."""
+        ignored)."""
         by_topic = {b.topic: b for b in batches}
         decoded = {}
         for kind in (IMU, ODOM):
             b = by_topic.get(self.topics[kind])
             decoded[kind] = None if b is None else cdr.deserialize(b.msgtype, b.payloads)
-        out = self.feed(decoded[IMU], decoded[ODOM])
-        if residuals is not None and self._residuals is not None:
-            for name, parts in self._residuals.items():
-                if parts:
-                    residuals[name] = Residuals(
-                        attitude=np.concatenate([p.attitude for p in parts]),
-                        velocity=np.concatenate([p.velocity for p in parts]),
-                        position=np.concatenate([p.position for p in parts]),
-                    )
-                parts.clear()
+        return self.feed(decoded[IMU], decoded[ODOM])
+
+    def take_residuals(self) -> dict[str, Residuals]:
+        """One-step residuals of the windows solved since the last call, by stream
+        (``variation``, ``variation/reference``; kept with ``residuals=True``)."""
+        out: dict[str, Residuals] = {}
+        for name, parts in (self._residuals or {}).items():
+            if parts:
+                out[name] = Residuals(
+                    attitude=np.concatenate([p.attitude for p in parts]),
+                    velocity=np.concatenate([p.velocity for p in parts]),
+                    position=np.concatenate([p.position for p in parts]),
+                )
+            parts.clear()
         return out
 
     # -- input: raw payloads (the node) --------------------------------------------------------

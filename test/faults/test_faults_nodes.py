@@ -117,7 +117,7 @@ def _decoded(got: dict[str, list[bytes]], msgtypes: dict[str, str]):
 
 
 def _all_finite(fields) -> bool:
-    from strapdown_ros.stages.checks import nonfinite_rows
+    from strapdown_ros.stages.intake import nonfinite_rows
 
     return nonfinite_rows(fields) is None
 

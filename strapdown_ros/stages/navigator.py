@@ -1,6 +1,6 @@
 """The navigation stage: the navigator on messages, for ``generate`` and ``navigator_node``.
 
-:class:`NavigationStage` is the one streaming implementation: it takes the Imu and truth
+:class:`NavigatorStage` is the one streaming implementation: it takes the Imu and truth
 Odometry messages of its input (raw payloads or decoded fields, in any chunking), checks them
 (period, gaps, order, repeats, frames), runs the navigator of :mod:`strapdown_ros.core.
 navigation` over each contiguous stretch (:class:`NavigatorRun`) and returns the serialized
@@ -19,13 +19,8 @@ from numpy.typing import NDArray
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
-from strapdown_ros.config import Initial, Scenario
-from strapdown_ros.config.navigator import (
-    INPUT_STREAMS,
-    OUTPUT_TOPICS,
-    NavigatorSpec,
-    navigator_spec,
-)
+from strapdown_ros.config import Initial, Scenario, navigator_spec
+from strapdown_ros.config.navigator import INPUT_STREAMS, OUTPUT_TOPICS, NavigatorSpec
 from strapdown_ros.core.earth import (
     OMEGA_IE_VEC,
     dcm_ecef_to_ned,
@@ -65,19 +60,28 @@ from strapdown_ros.messages import (
     odometry_state,
     vector3_stamped_fields,
 )
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
+from strapdown_ros.stages.intake import (
+    InputEvents,
+    decode_one,
+    format_stamp,
+    nonfinite_rows,
+    quiet,
+    screen,
+    stamp_verdict,
+    stretches,
+    without_rows,
+)
 
 __all__ = [
     "INPUT_STREAMS",
     "OUTPUT_TOPICS",
-    "NavigationStage",
+    "NavigatorStage",
     "NavigatorOutputs",
     "NavigatorRun",
     "StreamError",
     "build_navigator",
     "initial_state_from_scenario",
     "initial_state_from_truth",
-    "input_end_ns",
     "navigate_messages",
 ]
 
@@ -88,21 +92,8 @@ Message = tuple[str, int, bytes]
 
 #: Truth messages kept for (re)starting runs.
 TRUTH_KEEP = 4096
-#: An IMU stamp more than this many periods behind the expected one: the source restarted.
-MAX_LATE_CYCLES = 10
-
-
 class StreamError(ValueError):
     """The input messages cannot be integrated as they are (gap, out of order, wrong rate)."""
-
-
-def _quiet(_: str) -> None:
-    return None
-
-
-def format_stamp(stamp_ns: int) -> str:
-    """``sec.nanosec`` of a stamp (ns since the epoch)."""
-    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
 
 
 def build_navigator(
@@ -539,7 +530,7 @@ class _Decoded:
     states: EarthState | None = None  # truth in the Earth frame (None: wrong frame)
 
 
-class NavigationStage:
+class NavigatorStage:
     """The streaming navigator: Imu and truth messages in, ``/navigator/*`` messages out.
 
     Input in arrival order and any chunking (:meth:`on_batch` raw payloads, :meth:`feed_fields`
@@ -589,9 +580,9 @@ class NavigationStage:
         nav_period_s: float = 0.0,
         end_ns: int | None = None,
         earth_frame: str = "earth",
-        info: Log = _quiet,
-        warn: Log = _quiet,
-        error: Log = _quiet,
+        info: Log = quiet,
+        warn: Log = quiet,
+        error: Log = quiet,
     ) -> None:
         if not spec.resolved:
             raise ValueError("the navigator spec must be resolved (resolve_navigator)")
@@ -628,7 +619,7 @@ class NavigationStage:
     @classmethod
     def for_scenario(
         cls, scenario: Scenario, spec: NavigatorSpec | None = None, **kwargs: Any
-    ) -> NavigationStage:
+    ) -> NavigatorStage:
         """The stage of ``scenario``'s navigator (or of ``spec``, resolved), with its output
         topics, frames, initial state and start; ``kwargs`` as for the constructor."""
         spec = navigator_spec(scenario) if spec is None else spec
@@ -786,37 +777,32 @@ class NavigationStage:
         dropped truth a lost truth message (the navigator runs on from its own state)."""
         keep = np.ones(is_imu.size, dtype=bool)
         parts = []
-        for dec, flag, topic in ((imu, True, self.spec.imu_topic),
-                                 (truth, False, self.spec.truth_topic)):  # fmt: skip
+        for dec, flag in ((imu, True), (truth, False)):
             if dec is None or dec.fields is None:
                 parts.append(dec)
                 continue
-            bad = nonfinite_rows(dec.fields)
+            fields, bad = self._screen(dec.fields, flag)
             if bad is None:
-                parts.append(dec)
+                parts.append(dec if fields is dec.fields else self._decoded(fields))
                 continue
-            for a, b in stretches(bad):
-                self._nonfinite_event(topic, dec.stamps[a : b + 1].tolist(), flag)
             keep[np.flatnonzero(is_imu == flag)[bad]] = False
-            fields = without_rows(dec.fields, bad)
             parts.append(None if fields is None else self._decoded(fields))
         if keep.all():
-            return is_imu, imu, truth
+            return is_imu, parts[0], parts[1]
         return is_imu[keep], parts[0], parts[1]
 
-    def _nonfinite_event(self, topic: str, stamps: Sequence[int], imu: bool) -> None:
-        first, last, n = int(stamps[0]), int(stamps[-1]), len(stamps)
+    def _screen(self, fields: Any, imu: bool) -> tuple[Any, NDArray[np.bool_] | None]:
+        """:func:`~strapdown_ros.stages.intake.screen` of Imu (``imu``) or truth messages: a
+        dropped Imu is a lost one (the run ends at its last complete cycle), a dropped truth a
+        lost truth (the navigator runs on from its own state)."""
         if imu:
-            self.events.dropped(topic, stamps)
-        span = format_stamp(first) + (f"..{format_stamp(last)} ({n} messages)" if n > 1 else "")
-        action = ("treated as lost: the run ends at its last complete cycle, a new one starts "
-                  "from the truth" if imu else
-                  "treated as lost: the navigator runs on from its own state (no error "
-                  "messages at that stamp)")  # fmt: skip
-        self.events(
-            "non-finite", f"{topic}: stamp {span}: NaN or infinity in the message; {action}",
-            error=True,
-        )
+            topic = self.spec.imu_topic
+            return screen(fields, topic, self.events, "treated as lost: the run ends at its "
+                          "last complete cycle, a new one starts from the truth",
+                          lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
+        return screen(fields, self.spec.truth_topic, self.events, "treated as lost: the "
+                      "navigator runs on from its own state (no error messages at that "
+                      "stamp)")  # fmt: skip
 
     def _add_block(
         self,
@@ -854,28 +840,21 @@ class NavigationStage:
             if imu.fields is not None:
                 return self._on_imu_fields(imu.fields.rows(row, row + 1))
             assert imu.payloads is not None
-            try:
-                fields = cdr.deserialize(cdr.IMU, [imu.payloads[row]])
-            except cdr.CdrError as exc:
-                self.events("malformed", f"{self.spec.imu_topic}: rejected a malformed Imu: "
-                            f"{exc}", error=True)  # fmt: skip
+            fields = decode_one(cdr.IMU, imu.payloads[row], self.spec.imu_topic, self.events)
+            if fields is None:
                 return []
-            if nonfinite_rows(fields) is not None:
-                self._nonfinite_event(self.spec.imu_topic, [int(fields.stamps_ns[0])], True)
-                return []
-            return self._on_imu_fields(fields)
+            fields, _ = self._screen(fields, True)
+            return [] if fields is None else self._on_imu_fields(fields)
         row = k - int(imu_before[k])
         assert truth is not None
         if truth.fields is None:
             assert truth.payloads is not None
-            try:
-                fields = cdr.deserialize(cdr.ODOMETRY, [truth.payloads[row]])
-            except cdr.CdrError as exc:
-                self.events("malformed", f"{self.spec.truth_topic}: rejected a malformed "
-                            f"Odometry: {exc}", error=True)  # fmt: skip
+            fields = decode_one(cdr.ODOMETRY, truth.payloads[row], self.spec.truth_topic,
+                                self.events)  # fmt: skip
+            if fields is None:
                 return []
-            if nonfinite_rows(fields) is not None:
-                self._nonfinite_event(self.spec.truth_topic, [int(fields.stamps_ns[0])], False)
+            fields, _ = self._screen(fields, False)
+            if fields is None:
                 return []
             one = self._decoded(fields)
             if one.states is None:
@@ -986,13 +965,11 @@ class NavigationStage:
                 return
             except StreamError as exc:
                 expected = self.run.next_imu_ns
-                restart = stamp < expected - MAX_LATE_CYCLES * self.period_ns
-                if stamp < expected and not restart:
-                    what = "duplicate stamp" if stamp == expected - self.period_ns else (
-                        "out-of-order stamp")  # fmt: skip
-                    self.events(what, f"{self.spec.imu_topic}: {exc}; dropped")
+                verdict = stamp_verdict(stamp, expected - self.period_ns, self.period_ns)
+                if verdict in ("duplicate", "out-of-order"):
+                    self.events(f"{verdict} stamp", f"{self.spec.imu_topic}: {exc}; dropped")
                     return
-                if restart:
+                if verdict == "restart":
                     self.events(
                         "restart",
                         f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} jumps back from "
@@ -1014,7 +991,7 @@ class NavigationStage:
                 self._flush_pending = self._outputs_of(self.run)
                 self.run = None
         if self.imu_buffer and stamp <= self.imu_buffer[-1][0]:
-            if stamp < self.imu_buffer[-1][0] - MAX_LATE_CYCLES * self.period_ns:
+            if stamp_verdict(stamp, self.imu_buffer[-1][0], self.period_ns) == "restart":
                 self.imu_buffer.clear()  # the source restarted before a run could start
             else:
                 self.events(
@@ -1193,7 +1170,7 @@ def navigate_messages(
     ``strapdown-sim replay`` to check a live replay.
     """
     topics = dict(output_topics or {k: k for k in OUTPUT_TOPICS})
-    stage = NavigationStage(
+    stage = NavigatorStage(
         spec, topics, initial=initial, start_ns=start_ns, earth_frame=earth_frame
     )
     n_truth = 0 if truth is None else len(truth.stamps_ns)
@@ -1207,15 +1184,3 @@ def navigate_messages(
     for topic, _, payload in stage.feed_fields(imu, truth, order >= n_truth):
         out.setdefault(by_topic[topic], []).append(bytes(payload))
     return out
-
-
-def input_end_ns(scenario: Scenario, imu_topic: str) -> int | None:
-    """Last IMU stamp of the scenario's stream on ``imu_topic`` (None if unknown)."""
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-    key = next((k for k, v in scenario.recording.topics.items() if v == imu_topic), None)
-    if key not in INPUT_STREAMS:
-        return None
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    last = cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
-    return scenario.start_time_ns + last * scenario.period_ns
