@@ -29,6 +29,7 @@ from strapdown_ros.stages.aided import (
     AidedStage,
     aided_expected_counts,
     aided_input_topics,
+    aided_topic_plans,
     aided_topic_types,
 )
 
@@ -231,3 +232,17 @@ def test_covariance_is_symmetric_positive_definite_at_every_output(plain):
     assert len(p) == int(DURATION_S * 10) + 1
     np.testing.assert_array_equal(p, np.swapaxes(p, -1, -2))
     np.linalg.cholesky(p)  # raises if one is not positive definite
+
+
+def test_topic_plans_match_the_output(plain, plain_out):
+    """The chain rows (count, first and last stamp) describe what the stage published."""
+    scenario, cycles, _ = plain
+    rows = aided_topic_plans(scenario, cycles)
+    assert {r.topic for r in rows} == set(plain_out)
+    for row in rows:
+        payloads, log = plain_out[row.topic]
+        assert len(payloads) == row.count, row.topic
+        stamps = np.asarray(cdr.deserialize(row.msgtype, payloads).stamps_ns)
+        np.testing.assert_array_equal(np.asarray(log) - stamps, row.log_delay_ns)
+        if row.first_ns is not None:
+            assert (int(stamps[0]), int(stamps[-1])) == (row.first_ns, row.last_ns), row.topic

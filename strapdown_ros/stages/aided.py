@@ -66,6 +66,7 @@ from strapdown_ros.messages import (
     odometry_state,
     vector3_stamped_fields,
 )
+from strapdown_ros.plan.model import TopicPlan
 from strapdown_ros.stages.intake import InputEvents, format_stamp, nonfinite_rows, without_rows
 
 __all__ = [
@@ -77,6 +78,7 @@ __all__ = [
     "aided_input_topics",
     "aided_output_topics",
     "aided_sensors",
+    "aided_topic_plans",
     "aided_topic_types",
 ]
 
@@ -205,6 +207,35 @@ def aided_expected_counts(scenario: Scenario, cycles: int) -> dict[str, int]:
         n = _sensor_schedule(scenario, s).count(t_end)
         out[topics[f"innovation_{s}"]] = n
         out[topics[f"nis_{s}"]] = n
+    return out
+
+
+def aided_topic_plans(scenario: Scenario, cycles: int, link: str = "aided") -> list[TopicPlan]:
+    """The ``/aided/*`` topics for reference cycles 0..``cycles`` as the chain's
+    :class:`~strapdown_ros.plan.model.TopicPlan` rows (the ``outputs`` of a chain link): counts
+    of :func:`aided_expected_counts`; the output topics' first and last stamps (the output
+    epochs in ``[t0, t0 + cycles T]``); innovation and NIS topics logged ``latency`` after their
+    stamps."""
+    spec = aided_spec(scenario)
+    if spec is None:
+        return []
+    counts = aided_expected_counts(scenario, cycles)
+    types = aided_topic_types(scenario)
+    t0 = scenario.start_time_ns
+    p = spec.output_period_ns
+    first = -(-t0 // p) * p
+    last = (t0 + cycles * scenario.period_ns) // p * p
+    latency = {s: _sensor_schedule(scenario, s).latency_ns for s in aided_sensors(scenario)}
+    out = []
+    for key, topic in aided_output_topics(scenario).items():
+        n = counts[topic]
+        if key.startswith(("innovation_", "nis_")):
+            sensor = key.split("_", 1)[1]
+            out.append(TopicPlan(topic, types[topic], n, link, None, None, None,
+                                 latency[sensor]))  # fmt: skip
+        else:
+            out.append(TopicPlan(topic, types[topic], n, link, None,
+                                 first if n else None, last if n else None))  # fmt: skip
     return out
 
 
