@@ -9,8 +9,12 @@ of ``--repeats`` starts, with the 1-minute load average before and after. Start-
 time plus the set-up the node does before it subscribes (for a processing node: reading the
 scenario, its plan, the stage objects).
 
-Usage: python bench/bench_startup.py [--repeats 5] [--nodes trajectory_node ...]
-Last line: ``startup_max_s: X`` (the slowest node's median).
+With ``--base DIR`` (a checkout of an earlier commit, e.g. ``git worktree add /tmp/base REV``)
+every start alternates between that tree (first on ``PYTHONPATH``) and this one, and each line
+ends with the ratio this / base, measured side by side under the same load.
+
+Usage: python bench/bench_startup.py [--repeats 5] [--nodes trajectory_node ...] [--base DIR]
+Last line: ``startup_max_s: X`` (the slowest node's median, this tree).
 """
 
 from __future__ import annotations
@@ -42,8 +46,10 @@ def _exe(name: str) -> str:
     return str(Path(sys.executable).parent / name)
 
 
-def _env() -> dict[str, str]:
+def _env(base: Path | None = None) -> dict[str, str]:
     env = dict(os.environ)
+    if base is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(base), env.get("PYTHONPATH", "")]).rstrip(":")
     env.update(
         ROS_DOMAIN_ID=str(150 + os.getpid() % 80),
         ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
@@ -59,7 +65,7 @@ def _env() -> dict[str, str]:
 READY = {"trajectory_node": "]: scenario ", "bag_recorder": "]: recording "}
 
 
-def node_startup_s(name: str, work: Path) -> float:
+def node_startup_s(name: str, work: Path, base: Path | None = None) -> float:
     """Seconds from process start to the node's ready line (then it is stopped)."""
     args = [_exe(name), "--ros-args", "-p", f"scenario:={SCENARIO}"]
     if name == "trajectory_node":
@@ -69,7 +75,7 @@ def node_startup_s(name: str, work: Path) -> float:
     log = work / f"{name}.log"
     with open(log, "w") as out:
         t0 = time.perf_counter()
-        proc = subprocess.Popen(args, env=_env(), stdout=out, stderr=subprocess.STDOUT,
+        proc = subprocess.Popen(args, env=_env(base), stdout=out, stderr=subprocess.STDOUT,
                                 stdin=subprocess.DEVNULL)  # fmt: skip
         try:
             while time.perf_counter() - t0 < TIMEOUT_S:
@@ -88,31 +94,44 @@ def node_startup_s(name: str, work: Path) -> float:
                 proc.wait()
 
 
-def validate_s() -> float:
+def validate_s(work: Path, base: Path | None = None) -> float:
     t0 = time.perf_counter()
     subprocess.run([_exe("strapdown-sim"), "validate", str(SCENARIO)], check=True,
-                   capture_output=True)  # fmt: skip
+                   capture_output=True, env=_env(base))  # fmt: skip
     return time.perf_counter() - t0
+
+
+def _line(name: str, times: list[float], base: list[float] | None) -> str:
+    text = f"  {name:<24} median {statistics.median(times):.2f} s (min {min(times):.2f}, max "
+    text += f"{max(times):.2f})"
+    if base:
+        ratio = statistics.median(times) / statistics.median(base)
+        text += f"; base median {statistics.median(base):.2f} s; ratio this/base {ratio:.2f}"
+    return text
 
 
 def main(argv: list[str] | None = None) -> float:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--nodes", nargs="+", default=list(NODES))
+    parser.add_argument("--base", type=Path, help="an earlier source tree, measured alternately")
     args = parser.parse_args(argv)
     print(f"load average before: {os.getloadavg()[0]:.2f}")
     results: dict[str, float] = {}
+    checks: list[tuple[str, object]] = [("strapdown-sim validate", validate_s)]
+    checks += [(name, lambda work, base, name=name: node_startup_s(name, work, base))
+               for name in args.nodes]  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="bench_startup_") as tmp:
         work = Path(tmp)
-        times = [validate_s() for _ in range(args.repeats)]
-        results["strapdown-sim validate"] = statistics.median(times)
-        print(f"  {'strapdown-sim validate':<24} median {results['strapdown-sim validate']:.2f} s"
-              f" (min {min(times):.2f}, max {max(times):.2f})")  # fmt: skip
-        for name in args.nodes:
-            times = [node_startup_s(name, work) for _ in range(args.repeats)]
+        for name, measure in checks:
+            times: list[float] = []
+            base: list[float] = []
+            for _ in range(args.repeats):
+                if args.base is not None:
+                    base.append(measure(work, args.base))  # type: ignore[operator]
+                times.append(measure(work, None))  # type: ignore[operator]
             results[name] = statistics.median(times)
-            print(f"  {name:<24} median {results[name]:.2f} s "
-                  f"(min {min(times):.2f}, max {max(times):.2f})")  # fmt: skip
+            print(_line(name, times, base))
     print(f"load average after: {os.getloadavg()[0]:.2f}")
     worst = max(v for k, v in results.items() if k in args.nodes)
     print(f"startup_max_s: {worst:.2f}")

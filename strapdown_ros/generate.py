@@ -25,6 +25,7 @@ from strapdown_ros.plan.metadata import bag_custom_data
 from strapdown_ros.producer import Piece, Producer
 from strapdown_ros.stages.tf import STATIC_QOS
 from strapdown_ros.stages.trajectory import reference_batch_chunks
+from strapdown_ros.topics import topic_lines
 
 __all__ = [
     "DatasetSummary",
@@ -58,9 +59,7 @@ class DatasetSummary:
             f"({self.duration_s / max(self.elapsed_s, 1e-9):.0f}x real time)",
             "topics:",
         ]
-        width = max((len(t) for t in self.topics), default=0)
-        for topic, count in self.topics.items():
-            lines.append(f"  {topic:<{width}}  {count:>9d} messages")
+        lines += topic_lines({t: f"{count:>9d} messages" for t, count in self.topics.items()})
         for name, res in self.residuals.items():
             ok = "ok" if res.within_spec() else "DEFECT"
             lines.append(

@@ -25,6 +25,7 @@ from strapdown_ros.campaign.results import finished_runs, read_run_errors, run_d
 from strapdown_ros.campaign.runs import Campaign
 from strapdown_ros.campaign.vary import parse_vary
 from strapdown_ros.config import ScenarioError
+from strapdown_ros.logs import quiet
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "config" / "scenarios" / "default.yaml"
@@ -107,7 +108,7 @@ def _generate_errors(tmp_path: Path, overrides: tuple[str, ...]) -> np.ndarray:
 @pytest.mark.slow
 def test_run_k_equals_generate_and_an_interrupted_campaign_resumes(tmp_path):
     out = tmp_path / "campaign"
-    result = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=2, log=lambda m: None)
+    result = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=2, log=quiet)
     assert result.ran == [0, 1, 2] and not result.failed and result.workers == 2
     summary = json.loads((run_dir(out, 2) / "summary.json").read_text())
     _, errors = read_run_errors(out, 2)
@@ -125,7 +126,7 @@ def test_run_k_equals_generate_and_an_interrupted_campaign_resumes(tmp_path):
     # a run lost (as by an interruption) is the only one run again, with the same bits
     (run_dir(out, 1) / "summary.json").unlink()
     before = read_run_errors(out, 0)[1]
-    again = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=1, log=lambda m: None)
+    again = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=1, log=quiet)
     assert again.ran == [1] and again.skipped == [0, 2]
     assert read_run_errors(out, 0)[1].tobytes() == before.tobytes()
     # a different campaign in the same directory is refused
@@ -206,7 +207,7 @@ def test_scheduler_address_and_a_killed_worker(tmp_path):
         assert sorted(runs) == list(range(8))  # every run present once
         # and the same bits as a local run of the same index
         local = tmp_path / "local"
-        run_campaign(DEFAULT, local, 1, duration_s=20.0, workers=1, log=lambda m: None)
+        run_campaign(DEFAULT, local, 1, duration_s=20.0, workers=1, log=quiet)
         assert read_run_errors(local, 0)[1].tobytes() == read_run_errors(out, 0)[1].tobytes()
     finally:
         _stop(procs)

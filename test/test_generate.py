@@ -284,7 +284,7 @@ def test_validate_command_and_bad_key_message(tmp_path):
 
 def test_pieces_give_the_same_messages_as_one_stream(monkeypatch):
     """Chunked generation (bounded memory, overlapped writing) changes no byte of any message."""
-    from strapdown_ros.stages import reference
+    from strapdown_ros.stages import trajectory as reference
 
     scenario = load_scenario(DEFAULT, duration_s=30.0)
     whole = reference.reference_batches(scenario, generate_reference(scenario))
@@ -365,7 +365,8 @@ def test_bad_variation_key_is_rejected_before_work(tmp_path):
 def test_streamed_variation_equals_one_vectorized_run(monkeypatch):
     """generate computes the variation piece by piece (windows with lead=1) while writing; the
     messages equal those of one vectorized run over the whole decoded reference, bit for bit."""
-    from strapdown_ros.stages import reference, variation
+    from strapdown_ros.stages import trajectory as reference
+    from strapdown_ros.stages import variation
 
     scenario = load_scenario(DEFAULT, duration_s=20.0)
     chunks = reference.generate_reference_chunks

@@ -21,20 +21,16 @@ Every wait has a timeout; children are killed at teardown.
 
 from __future__ import annotations
 
-import pickle
 import re
-import subprocess
-import sys
 import time
 from pathlib import Path
 
+import node_testing as nt
 import numpy as np
 import pytest
-from node_testing import Proc, bitwise_equal, executable, padded
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.core.imu_errors import ImuErrorModel
 from strapdown_ros.messages import imu_increments
@@ -47,9 +43,6 @@ from strapdown_ros.stages.imu_errors import (
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-HELPERS = Path(__file__).resolve().parent / "ros_helpers"
-RECORDER = HELPERS / "raw_recorder.py"
-REPLAY = HELPERS / "reference_replay.py"
 DURATION_S = 2.0
 M_VAR = 398  # variation cycles 0..398 of the 400 reference cycles at 200 Hz
 #: Tactical preset with fine quanta, so that noise (not quantization) dominates each sample and
@@ -73,13 +66,7 @@ def scenario():
 def bag(tmp_path_factory):
     """``strapdown-sim generate`` of the scenario: (path, contents)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
-    cmd += ["--duration", str(DURATION_S), "--quiet"]
-    for o in OVERRIDES:
-        cmd += ["--set", o]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    contents = read_bag(out, raw=True)
+    contents = nt.generated(SCENARIO, out, DURATION_S, OVERRIDES, timeout=120)
     assert len(contents.topics[IN].payloads) == M_VAR
     return out, contents
 
@@ -233,43 +220,24 @@ def test_the_scenario_checks_the_topics():
 # Processes over DDS
 
 
-def _params(*params: str) -> list[str]:
-    args = []
-    for p in params:
-        args += ["-p", p]
-    return args
+def _node(procs, env, tmp_path, *params: str) -> nt.Proc:
+    args = nt.node_args(
+        "imu_model_node", f"scenario:={SCENARIO}", nt.list_param("overrides", OVERRIDES),
+        f"duration_s:={DURATION_S}", "wait_for_subscribers:=1", *params,
+    )  # fmt: skip
+    return nt.launch(procs, args, env, tmp_path, "imu_model_node")
 
 
-def _node(procs, env, tmp_path, *params: str) -> Proc:
-    overrides = ",".join(f"'{o}'" for o in OVERRIDES)
-    args = [executable("imu_model_node"), "--ros-args"]
-    args += _params(
-        f"scenario:={SCENARIO}",
-        f"overrides:=[{overrides}]",
-        f"duration_s:={DURATION_S}",
-        "wait_for_subscribers:=1",
-        *params,
-    )
-    node = Proc(args, env, tmp_path, "imu_model_node")
-    procs.append(node)
-    return node
+def _recorder(procs, env, tmp_path, n_out: int, n_odom: int) -> tuple[nt.Proc, Path]:
+    topics = [(OUT, cdr.IMU, n_out), (ODOM, cdr.ODOMETRY, n_odom)]
+    return nt.raw_recorder(procs, env, tmp_path, topics, TIMEOUT_S - 5)
 
 
-def _recorder(procs, env, tmp_path, n_out: int, n_odom: int) -> tuple[Proc, Path]:
-    out = tmp_path / "recording.pkl"
-    args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
-    args += ["--topic", f"{OUT}={cdr.IMU}={n_out}", "--topic", f"{ODOM}={cdr.ODOMETRY}={n_odom}"]
-    rec = Proc(args, env, tmp_path, "recorder")
-    procs.append(rec)
-    return rec, out
-
-
-def _replay(procs, env, tmp_path, path, *faults: str) -> Proc:
-    args = [sys.executable, str(REPLAY), "--bag", str(path), "--imu-topic", IN]
-    args += ["--odom-topic", ODOM, "--interval", "0.001", "--timeout", str(TIMEOUT_S - 10)]
-    replay = Proc([*args, *faults], env, tmp_path, "replay")
-    procs.append(replay)
-    return replay
+def _replay(procs, env, tmp_path, path, *faults: str) -> nt.Proc:
+    return nt.reference_replay(
+        procs, env, tmp_path, path, "--imu-topic", IN, "--odom-topic", ODOM,
+        "--interval", "0.001", "--timeout", str(TIMEOUT_S - 10), *faults,
+    )  # fmt: skip
 
 
 @pytest.mark.slow
@@ -284,17 +252,14 @@ def test_node_equals_offline(bag, offline, procs, ros_env, tmp_path, executor):
     node = _node(procs, ros_env, tmp_path, f"executor:={executor}")
     node.wait_for(r"subscribed to /variation/imu", deadline)
     replay = _replay(procs, ros_env, tmp_path, path)
-    assert replay.wait(deadline) == 0, replay.describe()
-    assert node.wait(deadline) == 0, node.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
-    assert "Traceback" not in node.output and "WARN" not in node.output, node.describe()
+    nt.wait_ok(deadline, replay, node, rec)
+    nt.assert_clean(node, warnings=False)
     assert f"published {M_VAR} measured messages" in node.output, node.describe()
-    with open(out, "rb") as f:
-        got = pickle.load(f)["topics"][OUT]
+    got = nt.load_recording(out)["topics"][OUT]
     assert len(got) == M_VAR
-    bad = [i for i, (g, w) in enumerate(zip(got, offline, strict=True)) if g != padded(w)]
+    bad = [i for i, (g, w) in enumerate(zip(got, offline, strict=True)) if g != nt.padded(w)]
     assert not bad, f"payloads {bad[:5]}... differ from the offline model"
-    assert bitwise_equal(cdr.deserialize(cdr.IMU, got), cdr.deserialize(cdr.IMU, offline))
+    assert nt.bitwise_equal(cdr.deserialize(cdr.IMU, got), cdr.deserialize(cdr.IMU, offline))
 
 
 @pytest.mark.slow
@@ -310,26 +275,22 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     node.wait_for(r"subscribed to /variation/imu", deadline)
     faults = ("--drop", str(DROP), "--swap", str(SWAP), "--duplicate", str(DUP))
     replay = _replay(procs, ros_env, tmp_path, path, *faults)
-    assert replay.wait(deadline) == 0, replay.describe()
-    assert node.wait(deadline) == 0, node.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
+    nt.wait_ok(deadline, replay, node, rec)
+    nt.assert_clean(node)
     log = node.output
-    assert "Traceback" not in log, node.describe()
 
     def st(m: int) -> str:
-        t = scenario.start_time_ns + m * scenario.period_ns
-        return re.escape(f"{t // 1_000_000_000}.{t % 1_000_000_000:09d}")
+        return nt.stamp_regex(scenario.start_time_ns, scenario.period_ns, m)
 
     assert re.search(rf"WARN.*{IN}: gap: stamp {st(DROP + 1)} .*follows {st(DROP - 1)}", log)
     assert re.search(rf"WARN.*{IN}: gap: stamp {st(SWAP + 1)} .*follows {st(SWAP - 1)}", log)
     assert re.search(rf"WARN.*{IN}: out-of-order stamp {st(SWAP)} .*after {st(SWAP + 1)}", log)
     assert re.search(rf"WARN.*{IN}: duplicate stamp {st(DUP)} .*after {st(DUP)}", log)
-    with open(out, "rb") as f:
-        got = pickle.load(f)["topics"][OUT]
+    got = nt.load_recording(out)["topics"][OUT]
     assert [_cycle(scenario, p) for p in got] == expect
     # Before the first gap: the offline bytes.
     for p in got[: DROP - 1]:
-        assert p == padded(offline[_cycle(scenario, p) - 1])
+        assert p == nt.padded(offline[_cycle(scenario, p) - 1])
     # After it: the offline noise continues; only the quantizer's running sum lacks the
     # missing increments (≤ 2 quanta on the first message after a gap, ≤ 1 after).
     T = scenario.period_ns * 1e-9
@@ -347,7 +308,7 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     order[i], order[i + 1] = order[i + 1], order[i]
     order.insert(order.index(DUP) + 1, DUP)
     want = [stream.on_payload(contents.topics[IN].payloads[m - 1]) for m in order]
-    assert got == [padded(w) for w in want if w is not None]
+    assert got == [nt.padded(w) for w in want if w is not None]
 
 
 @pytest.mark.parametrize(
@@ -387,9 +348,6 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
-    args = [executable("imu_model_node"), "--ros-args", *_params(*params)]
-    proc = subprocess.run(args, env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO)
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 2, output
+    rc, output = nt.node_exit("imu_model_node", ros_env, *params)
+    assert rc == 2, output
     assert re.search(expected, output), output
-    assert "Traceback" not in output, output

@@ -160,8 +160,8 @@ def test_scenario_initialization_needs_the_initial_state() -> None:
 
 def test_node_parameters_go_through_the_model() -> None:
     pytest.importorskip("rclpy")
-    from strapdown_ros.nodes._common import ParameterError
     from strapdown_ros.nodes.navigator_node import navigator_section
+    from strapdown_ros.nodes.parameters import ParameterError
 
     s = load_scenario(DEFAULT, [], 1.0)
     spec = navigator_section(s, {"imu_topic": "/reference/imu", "n": 4})  # the file's truth

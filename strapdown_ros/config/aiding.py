@@ -51,7 +51,7 @@ __all__ = [
     "decimal_year",
 ]
 
-#: Fixed topic names of the aiding messages (issue 16), by stream key.
+#: Fixed topic names of the aiding messages, by stream key.
 AIDING_TOPICS: dict[str, str] = {
     "gnss_fix": "/gnss/fix",
     "gnss_vel": "/gnss/vel",

@@ -138,6 +138,13 @@ def _is_integer_ns(value: float) -> bool:
     return abs(value - round(value)) <= 1e-6 * max(1.0, abs(value)) * 1e-3
 
 
+#: the section fields that name a topic of ``recording.topics`` (followed by renames)
+_TOPIC_FIELDS: dict[str, tuple[str, ...]] = {
+    "navigator": ("imu_topic", "truth_topic"),
+    "imu_errors": ("input_topic", "output_topic"),
+}
+
+
 class Scenario(Model):
     """A validated scenario (frozen). ``path`` is the file it was read from (if any)."""
 
@@ -195,8 +202,23 @@ class Scenario(Model):
         return copy_
 
     def with_recording(self, **changes: Any) -> Scenario:
-        """A copy with ``recording`` fields replaced (e.g. topics renamed by node parameters)."""
-        return self.model_copy(update={"recording": self.recording.model_copy(update=changes)})
+        """A copy with ``recording`` fields replaced (e.g. topics renamed by node parameters).
+        A section that names a renamed topic (``navigator.imu_topic``, ``imu_errors.input_topic``
+        ...) follows the rename: it names the same stream under its new name."""
+        update: dict[str, Any] = {"recording": self.recording.model_copy(update=changes)}
+        if "topics" in changes:
+            old, new = self.recording.topics, changes["topics"]
+            renamed = {old[k]: new[k] for k in old if k in new and new[k] != old[k]}
+            for section, fields in _TOPIC_FIELDS.items():
+                spec = getattr(self, section)
+                moved = {
+                    f: renamed[getattr(spec, f)]
+                    for f in fields
+                    if spec is not None and getattr(spec, f) in renamed
+                }
+                if moved:
+                    update[section] = spec.model_copy(update=moved)
+        return self.model_copy(update=update)
 
     # -- cross-field rules ---------------------------------------------------------------------
 

@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.nodes._common import message_class
+from strapdown_ros.nodes.message_types import message_class
 from strapdown_ros.plan.model import Plan
 from strapdown_ros.stages.tf import node_derived_topics
 

@@ -1,4 +1,4 @@
-"""``aiding_node``: GNSS, barometer, magnetometer and wheel odometer, live (issue 16).
+"""``aiding_node``: GNSS, barometer, magnetometer and wheel odometer, live.
 
 A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStage`, the object
 ``strapdown-sim generate`` feeds: raw truth Odometry payloads in (default
@@ -17,14 +17,8 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import merge_order
 from strapdown_ros.config import ScenarioError
 from strapdown_ros.nodes._batched import BatchedInputNode
-from strapdown_ros.nodes._common import (
-    ParameterError,
-    declare_scenario,
-    declare_string,
-    message_class,
-    qos_from_parameters,
-    run_node,
-)
+from strapdown_ros.nodes.lifecycle import run_node
+from strapdown_ros.nodes.parameters import ParameterError, declare_scenario, declare_string
 from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStage, aiding_spec
 
@@ -48,7 +42,6 @@ class AidingNode(BatchedInputNode):
         )
         if not self.truth_topic:
             raise ParameterError("truth_topic", "must not be empty")
-        self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last truth message")
         log = self.get_logger()
         self.stream = AidingStage(
@@ -56,7 +49,7 @@ class AidingNode(BatchedInputNode):
             error=lambda msg: log.error(msg),
         )  # fmt: skip
         for topic in self.stream.topics:
-            self.add_output(topic, message_class(AIDING_MSGTYPES[topic]), self.qos)
+            self.add_output(topic, AIDING_MSGTYPES[topic])
         plan = resolve_plan(scenario)
         self.last_truth_ns = plan.last_stamp(scenario.recording.topics["reference_odom"])
         self._subscription = None
@@ -70,13 +63,9 @@ class AidingNode(BatchedInputNode):
     # -- BatchedInputNode hooks -----------------------------------------------------------------
 
     def _subscribe(self) -> str:
-        try:
-            self._subscription = self.create_subscription(
-                message_class(cdr.ODOMETRY), self.truth_topic, self._buffer(None), self.qos,
-                raw=True,
-            )  # fmt: skip
-        except Exception as exc:
-            raise ParameterError("truth_topic", str(exc)) from exc
+        self._subscription = self.subscribe_input(
+            self.truth_topic, cdr.ODOMETRY, None, "truth_topic"
+        )
         return self.truth_topic
 
     def _process(self, items: list[Any]) -> None:

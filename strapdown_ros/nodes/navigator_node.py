@@ -1,4 +1,4 @@
-"""``navigator_node``: the navigation stage, live (docs/interface.md §4, issue 5).
+"""``navigator_node``: the navigation stage, live (docs/interface.md §4).
 
 A thin rclpy shell around :class:`~strapdown_ros.stages.navigator.NavigatorStage` — the very
 object ``strapdown-sim generate`` feeds, so ``/navigator/*`` are published with the bag's
@@ -19,17 +19,15 @@ from strapdown_ros.config import DEFAULT_TOPICS, Scenario, ScenarioError
 from strapdown_ros.config.base import validate_section
 from strapdown_ros.config.navigator import OUTPUT_TOPICS, NavigatorSpec, resolve_navigator
 from strapdown_ros.nodes._batched import BatchedInputNode
-from strapdown_ros.nodes._common import (
+from strapdown_ros.nodes._tf import derived_outputs
+from strapdown_ros.nodes.lifecycle import run_node
+from strapdown_ros.nodes.parameters import (
     ParameterError,
     declare_int,
     declare_number,
     declare_scenario,
     declare_string,
-    message_class,
-    qos_from_parameters,
-    run_node,
 )
-from strapdown_ros.nodes._tf import derived_outputs
 from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.navigator import NavigatorStage
 from strapdown_ros.stages.tf import SolverWithTF, TFStage
@@ -102,7 +100,6 @@ class NavigatorNode(BatchedInputNode):
             )
             for key, rec_key in OUTPUT_TOPICS.items()
         }
-        self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last output")
 
         plan = None
@@ -127,15 +124,12 @@ class NavigatorNode(BatchedInputNode):
             if key.startswith("error") and not spec.truth_topic:
                 continue
             msgtype = {"odom": cdr.ODOMETRY, "fix": cdr.NAVSATFIX}.get(key, cdr.VECTOR3_STAMPED)
-            try:
-                self.add_output(topic, message_class(msgtype), self.qos)
-            except Exception as exc:
-                raise ParameterError(f"{key}_topic", str(exc)) from exc
+            self.add_output(topic, msgtype, f"{key}_topic")
         if plan is not None:  # map -> navigator and the map-frame odometry
             frames = TFStage(plan, variation_tf=False)
             derived = derived_outputs(self, plan, [out_topics["odom"]])
             for topic, msgtype in derived.items():
-                self.add_output(topic, message_class(msgtype), self.qos)
+                self.add_output(topic, msgtype)
             self.solver = SolverWithTF(self.solver, frames, derived)
         self._subs: list = []
         log.info(
@@ -153,14 +147,7 @@ class NavigatorNode(BatchedInputNode):
         if spec.truth_topic:
             inputs.append((spec.truth_topic, cdr.ODOMETRY, "truth", "truth_topic"))
         for topic, msgtype, kind, param in inputs:
-            try:
-                self._subs.append(
-                    self.create_subscription(
-                        message_class(msgtype), topic, self._buffer(kind), self.qos, raw=True
-                    )
-                )
-            except Exception as exc:
-                raise ParameterError(param, str(exc)) from exc
+            self._subs.append(self.subscribe_input(topic, msgtype, kind, param))
         return " and ".join(str(topic) for topic, *_ in inputs)
 
     def _failure(self) -> str | None:

@@ -21,7 +21,6 @@ import time
 from collections.abc import Callable, Iterator
 
 import rclpy
-from rclpy.duration import Duration
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
@@ -29,10 +28,13 @@ from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.playback import pacing_stats
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.nodes._common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    Pacer,
+from strapdown_ros.nodes._tf import derived_outputs, static_qos
+from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
+from strapdown_ros.nodes.handshake import declare_subscriber_counts, wait_for_subscriptions
+from strapdown_ros.nodes.lifecycle import EXIT_FAILURE, EXIT_OK, drain_publishers, run_node
+from strapdown_ros.nodes.message_types import message_class
+from strapdown_ros.nodes.pacing import Pacer
+from strapdown_ros.nodes.parameters import (
     ParameterError,
     declare_bool,
     declare_int,
@@ -40,14 +42,8 @@ from strapdown_ros.nodes._common import (
     declare_scenario,
     declare_string,
     declare_string_array,
-    declare_subscriber_counts,
-    message_class,
-    qos_from_parameters,
-    run_node,
-    wait_for_subscriptions,
 )
-from strapdown_ros.nodes._tf import derived_outputs, static_qos
-from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
+from strapdown_ros.nodes.qos import qos_from_parameters
 from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.tf import TFStage
 from strapdown_ros.stages.trajectory import reference_batch_chunks
@@ -270,7 +266,7 @@ class TrajectoryNode(Node):
                     if gate is not None and counts[topic] >= gate.limits[topic]:
                         # The pace resumes from here: a stall is not caught up in a burst.
                         pacer.start += gate.wait(topic, counts[topic], spin, ok)
-                    # SIGINT / SIGTERM (rclpy's signal handlers); ok() costs ~2 µs: not every time
+                    # SIGINT / SIGTERM (rclpy's signal handlers); ok() is not free: every 64th
                     if not counts[topic] & 63 and not ok():
                         raise ExternalShutdownException()
                     if paced:
@@ -303,41 +299,16 @@ class TrajectoryNode(Node):
             return True
         topics = set(self._wait_topics) | set(self.subscribers_per_topic)
         pubs = [p for t, p in self._publishers_by_topic.items() if t in topics]
-        self.get_logger().info(
-            f"waiting for {wanted} subscription(s) on {', '.join(self._wait_topics)} "
-            f"(timeout {self.wait_timeout_s:g} s)"
-        )
         return wait_for_subscriptions(
             self, pubs, wanted, self.wait_timeout_s, spin, self.subscribers_per_topic
         )
 
-    def _wait_acked(self, pub, timeout_s: float) -> bool:
-        """Wait (in short steps, so that a signal is noticed) until ``pub``'s data is acked."""
-        deadline = time.monotonic() + timeout_s
-        while rclpy.ok(context=self.context):
-            if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
-                return True
-            if time.monotonic() > deadline:
-                self.get_logger().warn(
-                    f"{pub.topic_name}: messages not acknowledged within {timeout_s:g} s",
-                    throttle_duration_sec=10.0,
-                )
-                return False
-        raise ExternalShutdownException()
-
     def _drain(self, spin: Callable[[float], None]) -> None:
         """Let the subscribers receive everything: acknowledgements, then a grace period."""
-        deadline = time.monotonic() + DRAIN_TIMEOUT_S
-        acked = [
-            self._wait_acked(pub, max(deadline - time.monotonic(), 0.1))
-            for pub in self._publishers_by_topic.values()
-        ]
-        if all(acked):
-            waited = time.monotonic() - deadline + DRAIN_TIMEOUT_S
+        pubs = list(self._publishers_by_topic.values())
+        waited = drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)
+        if waited is not None:
             self.get_logger().info(f"all messages acknowledged after {waited:.3f} s")
-        end = time.monotonic() + GRACE_S
-        while time.monotonic() < end:
-            spin(max(end - time.monotonic(), 0.0))
 
     def _log_summary(self, elapsed: float, span: float, pacer: Pacer | None) -> None:
         total = sum(self.counts.values())

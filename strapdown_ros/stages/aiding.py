@@ -1,4 +1,4 @@
-"""Aiding measurements (issue 16): GNSS, barometer, magnetometer and wheel odometer from the truth.
+"""Aiding measurements: GNSS, barometer, magnetometer and wheel odometer from the truth.
 
 One streaming stage used by ``strapdown-sim generate`` and the live node: the reference truth
 ``nav_msgs/Odometry`` goes in (decoded fields or CDR payloads, in chunks of any size, state
