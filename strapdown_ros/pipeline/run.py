@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from strapdown_ros.bag.selection import TopicSelection
 from strapdown_ros.config import load_scenario
 from strapdown_ros.pipeline.processes import (
     STOP_GRACE_S,
@@ -124,6 +125,10 @@ class _LiveRun:
         subscribers before it subscribes), the source (first in chain order) last; return the
         source."""
         nodes, self.subscriptions = live_graph(self.plan)
+        selection = TopicSelection.of_recording(self.plan.scenario.recording)
+        for topic in self.subscriptions:  # the recorder subscribes to the selected ones only
+            if topic in self.plan.topics and not selection.selects(topic):
+                self.subscriptions[topic] -= 1
         source, *downstream = nodes
         self.children.start("bag_recorder", *self._recorder_params())
         node_params = ["qos_depth:=10000"]
@@ -208,7 +213,9 @@ class _LiveRun:
         result = PipelineResult(
             out=self.out,
             counts={t: len(d) for t, d in contents.topics.items()},
-            expected=self.plan.counts(),
+            expected=TopicSelection.of_recording(self.plan.scenario.recording).counts(
+                self.plan.counts()
+            ),  # what the recorder records: the topics recording.include/exclude select
             elapsed_s=time.monotonic() - t_start,
             duration_s=self.plan.duration_s,
             domain_id=domain,

@@ -186,6 +186,27 @@ def _aiding_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
     return AidingStage(plan.scenario, plan.aiding)
 
 
+# -- timing: sensor timing errors on the published IMU and aiding messages ----------------------
+
+
+def _timing_inputs(plan: Plan) -> tuple[str, ...]:
+    from strapdown_ros.stages.timing import timed_topics
+
+    return tuple(t for t in timed_topics(plan) if t in plan.topics)
+
+
+def _timing_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
+    from strapdown_ros.stages.timing import timing_topic_plans
+
+    return {p.topic: p for p in timing_topic_plans(plan, upstream)}
+
+
+def _timing_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
+    from strapdown_ros.stages.timing import TimingStage
+
+    return TimingStage(plan)
+
+
 # -- tf: TF, map-frame odometry and increments, derived from every other link's outputs ---------
 
 
@@ -222,6 +243,8 @@ CHAIN: tuple[Link, ...] = (
          _navigator_outputs, _navigator_stage),  # fmt: skip
     Link("aiding", "aiding_node", lambda s: s.aiding is not None and bool(s.aiding.sensors()),
          _aiding_inputs, _aiding_outputs, _aiding_stage),  # fmt: skip
+    Link("timing", None, lambda s: s.timing is not None and bool(s.timing.sensors()),
+         _timing_inputs, _timing_outputs, _timing_stage),  # fmt: skip
     Link("tf", None, _always, _none, _tf_outputs, _tf_stage),
 )
 
