@@ -20,6 +20,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
+from strapdown_ros.config.aided import AidedSpec, check_aided
 from strapdown_ros.config.aiding import AidingSpec, check_aiding
 from strapdown_ros.config.base import (
     Model,
@@ -204,6 +205,7 @@ class Scenario(Model):
     tf: TFSpec | None = None  # SECTION tf (config/tf.py): TF, map datum, map odometry
     aiding: AidingSpec | None = None  # SECTION aiding
     timing: TimingSpec | None = None  # SECTION timing (config/timing.py): sensor timing errors
+    aided: AidedSpec | None = None  # SECTION aided (config/aided.py): the aided INS
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -297,6 +299,13 @@ class Scenario(Model):
             start_time_s=self.start_time_s,
             start_time_ns=self.start_time_ns,
             topics=topics,
+        )
+        check_aided(
+            self.aided,
+            topics=topics,
+            measured=None if self.imu_errors is None else self.imu_errors.topics(topics),
+            aiding=self.aiding,
+            period_ns=self.period_ns,
         )
         navigator = navigator_spec(self)
         check_navigator(navigator, topics, self.sections())
