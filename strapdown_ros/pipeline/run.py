@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from strapdown_ros.bag.selection import TopicSelection
-from strapdown_ros.config import load_scenario
+from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.pipeline.processes import (
     STOP_GRACE_S,
     Child,
@@ -26,7 +26,7 @@ from strapdown_ros.pipeline.processes import (
 )
 from strapdown_ros.pipeline.result import PipelineResult, read_trajectory_summary
 from strapdown_ros.plan import Plan, resolve_plan
-from strapdown_ros.plan.chain import live_graph
+from strapdown_ros.plan.chain import live_graph, offline_only
 
 __all__ = ["RECORDER_GRACE_S", "STARTUP_TIMEOUT_S", "run_pipeline", "say_to_stderr"]
 
@@ -79,6 +79,13 @@ def run_pipeline(
     out = Path(out)
     check_out(out, force)
     plan = resolve_plan(scenario)
+    offline = offline_only(plan)
+    if offline:
+        raise ScenarioError(
+            offline[0],
+            f"the scenario's {', '.join(offline)} section(s) run in `strapdown-sim generate` "
+            "only: no node runs them live yet (remove them for `run`)",
+        )
     if flow_control is None:
         flow_control = rate_factor > 1 or rate_factor <= 0
     if timeout_s is None:
