@@ -11,8 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef
 from strapdown_ros.core.rotations import C_FRD_TO_FLU, C_NED_TO_ENU
 
@@ -25,7 +26,6 @@ __all__ = [
     "sensor_in_body",
 ]
 
-F64 = NDArray[np.float64]
 
 #: FRD ↔ FLU sign flips, applied elementwise.
 _FLU = np.array([1.0, -1.0, -1.0])

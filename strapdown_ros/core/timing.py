@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64, I64
+
 __all__ = ["BLOCK", "TimingModel", "accumulate_dropped"]
 
-I64 = NDArray[np.int64]
-F64 = NDArray[np.float64]
 
 #: Draws per seeded block.
 BLOCK = 4096

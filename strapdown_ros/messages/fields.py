@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core.array_types import F64, I64
+
 __all__ = [
     "COVARIANCE_NOT_PROVIDED",
     "ClockFields",
@@ -43,8 +45,6 @@ COVARIANCE_NOT_PROVIDED = "not_provided"
 _NS = 1_000_000_000
 _INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 
 def _constant(value: object) -> bool:

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import BagContents, read_bag
 from strapdown_ros.checks import CheckSettings, check_pair, check_settings, is_ecef
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic, ned_velocity_from_ecef
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.rotations import euler_from_dcm, rotation_angle
@@ -50,7 +51,6 @@ __all__ = [
     "load_bag",
 ]
 
-F64 = NDArray[np.float64]
 
 ODOMETRY = "nav_msgs/msg/Odometry"
 NAVSATFIX = "sensor_msgs/msg/NavSatFix"

@@ -15,8 +15,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, geodetic_to_ecef
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.report.data import (
@@ -44,7 +44,6 @@ __all__ = [
     "plot_trajectory",
 ]
 
-F64 = NDArray[np.float64]
 
 #: Bins per line for min/max decimation.
 MAX_BINS = 2000

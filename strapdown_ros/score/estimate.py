@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import BagContents, TopicData
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import _geodetic_to_ecef, dcm_ned_to_ecef
 from strapdown_ros.core.rotations import C_FRD_TO_FLU, C_NED_TO_ENU
 from strapdown_ros.messages import EARTH_FRAME, TFMessageFields, dcm_from_quat_ros
@@ -35,8 +36,6 @@ __all__ = [
     "read_estimate",
 ]
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 ODOMETRY = "nav_msgs/msg/Odometry"
 NAVSATFIX = "sensor_msgs/msg/NavSatFix"

@@ -15,8 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.stats import chi2
+
+from strapdown_ros.core.array_types import F64, I64
 
 __all__ = [
     "NeesSeries",
@@ -28,8 +29,6 @@ __all__ = [
     "time_offset_step",
 ]
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 #: Below this horizontal truth speed (m/s) along/cross-track are undefined (NaN).
 MIN_TRACK_SPEED = 0.1

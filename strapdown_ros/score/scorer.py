@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import BagContents, read_bag
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic
 from strapdown_ros.core.navigation.errors import (
     attitude_error_young,
@@ -47,7 +48,6 @@ from strapdown_ros.score.truth import PointTruth, ReferenceTruth
 
 __all__ = ["Score", "ScoreError", "score_bag", "score_estimate"]
 
-F64 = NDArray[np.float64]
 
 TRUTH_TOPIC = "/reference/odom"
 TF_STATIC = "/tf_static"

@@ -24,8 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import (
     OMEGA_IE_VEC,
     dcm_ecef_to_ned,
@@ -40,8 +40,6 @@ from strapdown_ros.core.trajectory.base import Trajectory
 
 __all__ = ["PointTruth", "ReferenceTruth", "TruthRangeError"]
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 #: Step (s) of the central difference that gives the model's body rate ``ω_eb^B``.
 RATE_STEP_S = 1e-4

@@ -21,6 +21,7 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
 from strapdown_ros.config import Initial, Scenario, navigator_spec
 from strapdown_ros.config.navigator import INPUT_STREAMS, OUTPUT_TOPICS, NavigatorSpec
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.navigation import (
     NavState,
 )
@@ -65,8 +66,6 @@ __all__ = [
     "navigate_messages",
 ]
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 Log = Callable[[str], None]
 Message = tuple[str, int, bytes]
 

@@ -24,12 +24,12 @@ from numpy.typing import NDArray
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch
 from strapdown_ros.config.timing import SENSORS, SensorTiming
+from strapdown_ros.core.array_types import I64
 from strapdown_ros.core.timing import TimingModel, accumulate_dropped
 from strapdown_ros.plan.model import Plan, TopicPlan
 
 __all__ = ["TimingStage", "timed_topics", "timing_topic_plans"]
 
-I64 = NDArray[np.int64]
 _STAMP = struct.Struct("<iI")
 _NS = 1_000_000_000
 

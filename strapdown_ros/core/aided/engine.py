@@ -29,6 +29,7 @@ from strapdown_ros.core.aided import _loop
 from strapdown_ros.core.aided.measurement_models import KINDS
 from strapdown_ros.core.aided.model import FilterModel
 from strapdown_ros.core.aiding.magnetometer import IGRF_REFERENCE_RADIUS_M, _recursion_factors
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.navigation._kernels import GRAVITY_CODES
 
 __all__ = [
@@ -36,7 +37,6 @@ __all__ = [
     "gate_thresholds",
 ]
 
-F64 = NDArray[np.float64]
 #: Rows of the IMU ring beyond the rollback window (the largest block written at once).
 RING_CHUNK = 4096
 #: Output-epoch states stored per buffer (spilled to a list when full).

@@ -16,9 +16,10 @@ initial error is N(0, P0) (NEES consistent from the first epoch).
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core.aided.model import FilterModel
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import OMEGA_IE, dcm_ned_to_ecef
 from strapdown_ros.core.rotations import dcm_from_rotvec
 
@@ -31,7 +32,6 @@ __all__ = [
     "perturbed_state",
 ]
 
-F64 = NDArray[np.float64]
 
 #: σ floors (m, m/s, rad) of the navigation part of P0 when the configured σ is 0.
 FLOOR_SIGMA = (1e-3, 1e-3, 1e-6)

@@ -29,7 +29,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from strapdown_ros.core.aided.layout import (
     B_BA,
@@ -51,11 +50,11 @@ from strapdown_ros.core.aiding.baro import BaroErrors
 from strapdown_ros.core.aiding.gnss import GnssErrors
 from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
 from strapdown_ros.core.aiding.odometer import OdometerErrors
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.imu_errors import ImuErrorModel, ImuErrorParameters
 
 __all__ = ["FilterModel", "SensorModels", "StateOptions", "build_model"]
 
-F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -20,9 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from strapdown_ros.core.aided.layout import B_BA, B_BG, B_GMA, B_GMG, B_SFG, StateLayout
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import (
     A_WGS84,
     E2_WGS84,
@@ -35,7 +35,6 @@ from strapdown_ros.core.young import C_NED_TO_UEN
 
 __all__ = ["Reported", "nees", "reported", "skew_stack"]
 
-F64 = NDArray[np.float64]
 _W = np.array([[0.0, -OMEGA_IE, 0.0], [OMEGA_IE, 0.0, 0.0], [0.0, 0.0, 0.0]])
 _NED_TO_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 

@@ -14,9 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core.aiding.common import check_period, mat_t_vec, rate_cross_lever, sensor_rng
+from strapdown_ros.core.array_types import F64
 
 __all__ = [
     "ODOMETER_NORMALS_PER_EPOCH",
@@ -26,7 +27,6 @@ __all__ = [
     "contact_point_velocity",
 ]
 
-Array = NDArray[np.float64]
 
 #: Standard normals per epoch: white 1.
 ODOMETER_NORMALS_PER_EPOCH = 1
@@ -34,7 +34,7 @@ ODOMETER_NORMALS_PER_EPOCH = 1
 
 def contact_point_velocity(
     v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
-) -> Array:
+) -> F64:
     """Earth-relative velocity (m/s, body FRD) of the point at ``lever_arm_b`` (m, FRD).
 
     ``C_E^B v^E + ω_eb^B × l`` with ``c_b_e = C_FRD^E`` (n, 3, 3), ``v_e`` (n, 3) ECEF and
@@ -47,7 +47,7 @@ def contact_point_velocity(
 
 def contact_point_speed(
     v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
-) -> Array:
+) -> F64:
     """Speed (m/s) along body x of the contact point (see :func:`contact_point_velocity`)."""
     return contact_point_velocity(v_e, c_b_e, omega_eb_b, lever_arm_b)[:, 0]
 
@@ -100,7 +100,7 @@ class OdometerErrorModel:
         self._count = 0.0  # floor(distance / q) after the last epoch
         self.epochs = 0
 
-    def apply(self, speed: ArrayLike) -> Array:
+    def apply(self, speed: ArrayLike) -> F64:
         """Measured speeds (n,) of the true ones (n,) at the next n epochs (m/s)."""
         u = np.asarray(speed, dtype=np.float64)
         n = u.shape[0]
