@@ -144,3 +144,18 @@ clean:
 
 distclean: clean
 	rm -rf $(VENV)
+
+# The benchmark suite (docs/suite.md): fixed-seed scenarios generated into out/suite/<name>.
+# SUITE_ARGS passes options to generate, e.g. SUITE_ARGS="--duration 60".
+SUITE := config/suite/car_city.yaml config/scenarios/default.yaml config/suite/rtk_survey.yaml \
+         config/suite/static_alignment.yaml config/suite/misalignment.yaml config/suite/timing.yaml
+SUITE_ARGS ?=
+.PHONY: suite
+suite: setup
+	@mkdir -p out/suite
+	@for f in $(SUITE); do \
+	    name=$$(basename $$f .yaml); echo "== $$name"; \
+	    $(VENV_ABS)/bin/strapdown-sim generate $$f --out out/suite/$$name --force --quiet \
+	        $(SUITE_ARGS) || exit $$?; \
+	done
+	@echo "suite bags in out/suite/ (score one: strapdown-sim score out/suite/NAME --topic ...)"

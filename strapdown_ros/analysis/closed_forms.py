@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import OMEGA_IE, radii
 from strapdown_ros.core.gravity import gravity_ned
 
@@ -48,7 +49,6 @@ __all__ = [
     "static_errors",
 ]
 
-F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
 
 

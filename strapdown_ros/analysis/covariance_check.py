@@ -30,6 +30,7 @@ from strapdown_ros.analysis.navigator_record import local_level_states
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import Scenario, load_scenario
 from strapdown_ros.config.scenario import navigator_spec
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.covariance import (
     PropagationSteps,
     VerticalDampingGains,
@@ -51,7 +52,6 @@ __all__ = [
     "steps_from_bag",
 ]
 
-F64 = NDArray[np.float64]
 
 #: The 9 error components, as the campaign's ``errors.parquet`` columns.
 COMPONENTS = ("pos_n_m", "pos_e_m", "pos_d_m", "vel_n_mps", "vel_e_mps", "vel_d_mps",

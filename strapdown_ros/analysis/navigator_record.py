@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic, geodetic_rates
 from strapdown_ros.core.young_nonlinear import FrameTrack
 from strapdown_ros.messages import imu_increments, odometry_state
@@ -26,8 +27,6 @@ __all__ = [
     "read_navigator_record",
 ]
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 
 @dataclass(frozen=True)

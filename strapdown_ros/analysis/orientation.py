@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from strapdown_ros.analysis.navigator_record import NavigatorRecord
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.imu_errors import ImuErrorModel, ImuErrorParameters
 from strapdown_ros.core.rotations import dcm_from_rotvec, rotvec_from_dcm
 from strapdown_ros.core.young import young_error_angles
@@ -37,7 +38,6 @@ __all__ = [
     "orientation_inputs",
 ]
 
-F64 = NDArray[np.float64]
 
 #: Floor of the relative agreement (rad): "1 % of the error or 1e-6 rad, the larger".
 FLOOR_RAD = 1e-6

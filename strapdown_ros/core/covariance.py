@@ -47,8 +47,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import OMEGA_IE, radii
 from strapdown_ros.core.gravity import gravity_ned
 from strapdown_ros.core.imu_errors import ImuErrorParameters, SensorErrors
@@ -69,7 +70,6 @@ __all__ = [
     "propagate_covariance",
 ]
 
-Array = NDArray[np.float64]
 
 #: Navigation error states: δL, δλ (rad), δh (m), δv_NED (m/s), φ_NED (rad).
 N_NAV = 9
@@ -93,7 +93,7 @@ assert len(STATE_NAMES) == N_STATES
 _OFF_DIAG = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 
 
-def _skew(v: Array) -> Array:
+def _skew(v: F64) -> F64:
     x, y, z = v
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
@@ -109,7 +109,7 @@ class VerticalDampingGains:
     k2: float
 
 
-def error_matrix_design(u: ArrayLike) -> Array:
+def error_matrix_design(u: ArrayLike) -> F64:
     """D(u), (..., 3, 9): ``(diag(s) + M(m)) u = D(u) (s, m)``.
 
     For the 3 scale factors s and the 6 misalignments m in the layout [xy, xz, yx, yz, zx, zy]
@@ -124,7 +124,7 @@ def error_matrix_design(u: ArrayLike) -> Array:
     return d
 
 
-def g_sensitivity_design(f: ArrayLike) -> Array:
+def g_sensitivity_design(f: ArrayLike) -> F64:
     """(..., 3, 9): ``G f = design(f) vec(G)`` with vec row-major (G_xx, G_xy, …, G_zz)."""
     f = np.asarray(f, dtype=np.float64)
     d = np.zeros(f.shape[:-1] + (3, 9))
@@ -157,16 +157,16 @@ class PropagationSteps:
         ``C_b^n`` in the middle of the step (maps the white noises).
     """
 
-    t: Array
-    lat: Array
-    alt: Array
-    v_ned: Array
-    f_ned: Array
-    c_sum: Array
-    d_gyro: Array
-    d_accel: Array
-    d_gsens: Array
-    c_mid: Array
+    t: F64
+    lat: F64
+    alt: F64
+    v_ned: F64
+    f_ned: F64
+    c_sum: F64
+    d_gyro: F64
+    d_accel: F64
+    d_gsens: F64
+    c_mid: F64
 
     def __post_init__(self) -> None:
         k = np.shape(self.t)[0] - 1
@@ -209,7 +209,7 @@ class PropagationSteps:
             raise ValueError(f"{m} cycles are not a whole number (>= 1) of steps of {n}")
         k = m // n
 
-        def per_step(a: Array) -> Array:
+        def per_step(a: F64) -> F64:
             return a.reshape((k, n) + a.shape[1:]).sum(axis=1)
 
         dv_n = np.einsum("mij,mj->mi", c, dv)
@@ -241,7 +241,7 @@ def navigation_error_dynamics(
     damping: VerticalDampingGains | None = None,
     omega: float = OMEGA_IE,
     dg_dp: ArrayLike | None = None,
-) -> Array:
+) -> F64:
     """F (9×9) of the navigation errors (δL, δλ, δh, δv_NED, φ_NED) (module docstring).
 
     At true latitude ``lat`` (rad), altitude ``alt`` (m), velocity ``v_ned`` (m/s) and specific
@@ -293,7 +293,7 @@ def navigation_error_dynamics(
     return F
 
 
-def gravity_partials(lat: ArrayLike, alt: ArrayLike, gravity_model: str = "j2") -> Array:
+def gravity_partials(lat: ArrayLike, alt: ArrayLike, gravity_model: str = "j2") -> F64:
     """(…, 3, 3): ∂g_NED / ∂(L, λ, h) by central differences of ``gravity_ned``.
 
     Steps 1e-6 rad and 1 m; the λ column is zero (the models are zonal).
@@ -308,7 +308,7 @@ def gravity_partials(lat: ArrayLike, alt: ArrayLike, gravity_model: str = "j2") 
     return out
 
 
-def position_to_ned_jacobian(lat: ArrayLike, alt: ArrayLike) -> Array:
+def position_to_ned_jacobian(lat: ArrayLike, alt: ArrayLike) -> F64:
     """(…, 3, 3): ``δr_NED = J (δL, δλ, δh)`` (m) at the true latitude and altitude."""
     lat, alt = np.asarray(lat, dtype=np.float64), np.asarray(alt, dtype=np.float64)
     r_n, r_e = radii(lat)
@@ -319,7 +319,7 @@ def position_to_ned_jacobian(lat: ArrayLike, alt: ArrayLike) -> Array:
     return j
 
 
-def _sensor_moments(s: SensorErrors, with_g: bool) -> tuple[Array, Array]:
+def _sensor_moments(s: SensorErrors, with_g: bool) -> tuple[F64, F64]:
     """Means and variances of one triad's constants: bias 3, (s, m) 9, [G 9]."""
     mean = [s.bias, s.scale_factor, [s.misalignment[i, j] for i, j in _OFF_DIAG]]
     var = [s.turn_on_bias_sigma**2, s.scale_factor_sigma**2,
@@ -334,7 +334,7 @@ def initial_moments(
     params: ImuErrorParameters,
     nav_mean: ArrayLike | None = None,
     nav_cov: ArrayLike | None = None,
-) -> tuple[Array, Array]:
+) -> tuple[F64, F64]:
     """Mean (54,) and covariance (54, 54) at the start.
 
     Navigation errors: ``nav_mean`` (9,) and ``nav_cov`` (9, 9) (default zero: started from
@@ -372,14 +372,14 @@ class CovarianceResult:
     errors in the units of the navigator's error topics by :meth:`navigation_moments`.
     """
 
-    t: Array
-    mean: Array
-    cov: Array
-    lat: Array
-    alt: Array
-    final_cov: Array
+    t: F64
+    mean: F64
+    cov: F64
+    lat: F64
+    alt: F64
+    final_cov: F64
 
-    def navigation_moments(self) -> tuple[Array, Array]:
+    def navigation_moments(self) -> tuple[F64, F64]:
         """Mean and standard deviation (K+1, 9) of (δr_NED m, δv_NED m/s, φ_NED rad)."""
         j = np.zeros((self.t.shape[0], N_NAV, N_NAV))
         j[:, 0:3, 0:3] = position_to_ned_jacobian(self.lat, self.alt)
@@ -389,7 +389,7 @@ class CovarianceResult:
         return mean, np.sqrt(np.maximum(np.einsum("kii->ki", cov), 0.0))
 
 
-def _expm_taylor(a: Array, order: int = 4) -> Array:
+def _expm_taylor(a: F64, order: int = 4) -> F64:
     out = np.eye(a.shape[0])
     term = np.eye(a.shape[0])
     for k in range(1, order + 1):

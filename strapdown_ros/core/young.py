@@ -32,8 +32,9 @@ The integrator of eq. (51) along a navigator's run is
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import OMEGA_IE
 
 __all__ = [
@@ -53,14 +54,13 @@ __all__ = [
     "young_rates",
 ]
 
-Array = NDArray[np.float64]
 
 #: Young's (up, east, north) axes from NED: ``v^UEN = C_NED_TO_UEN v^NED``. Exact.
 C_NED_TO_UEN = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
 C_NED_TO_UEN.setflags(write=False)
 
 
-def young_dcm(theta: ArrayLike) -> Array:
+def young_dcm(theta: ArrayLike) -> F64:
     """Matrix H of Young 1980 eq. (28) from Euler angles θ = (θ1, θ2, θ3) (rad).
 
     Parameters
@@ -89,7 +89,7 @@ def young_dcm(theta: ArrayLike) -> Array:
     return h
 
 
-def young_angles_from_dcm(h: ArrayLike) -> Array:
+def young_angles_from_dcm(h: ArrayLike) -> F64:
     """Euler angles θ (rad) of Young 1980 eq. (28) from H: the inverse of :func:`young_dcm`.
 
     ``θ2 = atan2(H31, √(H32² + H33²)) ∈ [-π/2, π/2]``, ``θ1 = atan2(-H32, H33)``,
@@ -102,7 +102,7 @@ def young_angles_from_dcm(h: ArrayLike) -> Array:
     return np.stack([theta1, theta2, theta3], axis=-1)
 
 
-def young_rates(theta: ArrayLike, gamma: ArrayLike) -> Array:
+def young_rates(theta: ArrayLike, gamma: ArrayLike) -> F64:
     """Euler-angle rates θ̇ (rad/s) from the relative angular velocity γ^P: Young 1980 eq. (31).
 
     Parameters
@@ -127,7 +127,7 @@ def young_rates(theta: ArrayLike, gamma: ArrayLike) -> Array:
     )
 
 
-def young_platform_rates(theta: ArrayLike, theta_dot: ArrayLike) -> Array:
+def young_platform_rates(theta: ArrayLike, theta_dot: ArrayLike) -> F64:
     """Relative angular velocity γ^P (rad/s) from θ and θ̇: Young 1980 eq. (30).
 
     Inverse of :func:`young_rates`.
@@ -140,7 +140,7 @@ def young_platform_rates(theta: ArrayLike, theta_dot: ArrayLike) -> Array:
     return np.stack([d1 + d3 * s2, d2 * c1 - d3 * s1 * c2, d2 * s1 + d3 * c1 * c2], axis=-1)
 
 
-def young_error_angles(c_b_n_computed: ArrayLike, c_b_n_true: ArrayLike) -> Array:
+def young_error_angles(c_b_n_computed: ArrayLike, c_b_n_true: ArrayLike) -> F64:
     """Young 1980 error angles (θ1, θ2, θ3) (rad) between a computed and a true attitude.
 
     Parameters
@@ -167,7 +167,7 @@ def young_error_angles(c_b_n_computed: ArrayLike, c_b_n_true: ArrayLike) -> Arra
 # The derivation: operators, frame matrices, eqs. (39), (47), (50), (51)
 
 
-def young_operator(v: ArrayLike) -> Array:
+def young_operator(v: ArrayLike) -> F64:
     """Young 1980 eq. (8)/(17) operator of an angular velocity vector: ``-(v×)``.
 
     ``[[0, v3, -v2], [-v3, 0, v1], [v2, -v1, 0]]``; for ``v^b = W v^a`` the operator of the
@@ -181,7 +181,7 @@ def young_operator(v: ArrayLike) -> Array:
     return out
 
 
-def young_operator_vector(a: ArrayLike) -> Array:
+def young_operator_vector(a: ArrayLike) -> F64:
     """The vector (α1, α2, α3) of a Young operator, eq. (9): ``(A23, A31, A12)``.
 
     Skew-symmetrized first, so a slightly non-skew numerical ``W^T Ẇ`` gives its nearest
@@ -192,7 +192,7 @@ def young_operator_vector(a: ArrayLike) -> Array:
     return np.stack([s[..., 1, 2], s[..., 2, 0], s[..., 0, 1]], axis=-1)
 
 
-def earth_rotation_dcm(t: ArrayLike, omega: float = OMEGA_IE) -> Array:
+def earth_rotation_dcm(t: ArrayLike, omega: float = OMEGA_IE) -> F64:
     """Matrix E of Young 1980 eq. (25): ``v^e = E v^I``, ``R_{+Z}(Ω_e t)`` (t in s)."""
     a = np.asarray(t, dtype=np.float64) * omega
     c, s = np.cos(a), np.sin(a)
@@ -203,7 +203,7 @@ def earth_rotation_dcm(t: ArrayLike, omega: float = OMEGA_IE) -> Array:
     return out
 
 
-def earth_to_platform_dcm(lat: ArrayLike, lon: ArrayLike) -> Array:
+def earth_to_platform_dcm(lat: ArrayLike, lon: ArrayLike) -> F64:
     """Matrix F (eq. (26), true position) or G (eq. (27), indicated position) of Young 1980.
 
     ``v^P = F v^e`` with ``R_{-y'}(φ) R_{+Z}(λ)``: rows are the up (ellipsoid normal), east and
@@ -222,7 +222,7 @@ def earth_to_platform_dcm(lat: ArrayLike, lon: ArrayLike) -> Array:
 
 def frame_rates(
     lat: ArrayLike, lat_rate: ArrayLike, lon_rate: ArrayLike, omega: float = OMEGA_IE
-) -> Array:
+) -> F64:
     """Inertial angular velocity of an (up, east, north) local-level frame in its own axes.
 
     Young 1980 eq. (39): ``ψ^P = ((λ̇ + Ω_e) sin φ, -φ̇, (λ̇ + Ω_e) cos φ)`` (rad/s) for the
@@ -241,7 +241,7 @@ def commanded_rates(
     lon_rate_s: ArrayLike,
     drift_m: ArrayLike = (0.0, 0.0, 0.0),
     omega: float = OMEGA_IE,
-) -> Array:
+) -> F64:
     """δ^M of Young 1980 eq. (47): the computer frame's rate applied about Σ_M, plus drift.
 
     ``δ^M = ((λ̇^s + Ω_e) sin φ^s + ε1, -φ̇^s + ε2, (λ̇^s + Ω_e) cos φ^s + ε3)`` (rad/s), the
@@ -251,7 +251,7 @@ def commanded_rates(
     return frame_rates(lat_s, lat_rate_s, lon_rate_s, omega) + np.asarray(drift_m, dtype=np.float64)
 
 
-def relative_rates(theta: ArrayLike, delta_m: ArrayLike, psi_p: ArrayLike) -> Array:
+def relative_rates(theta: ArrayLike, delta_m: ArrayLike, psi_p: ArrayLike) -> F64:
     """γ^P of Young 1980 eqs. (48)/(50): ``Γ^P = H^T Δ^M H - Ψ^P``, i.e. ``γ = H^T δ^M - ψ^P``.
 
     The angular velocity of Σ_M relative to Σ_P in Σ_P axes (rad/s), from θ (rad), δ^M
@@ -262,7 +262,7 @@ def relative_rates(theta: ArrayLike, delta_m: ArrayLike, psi_p: ArrayLike) -> Ar
     return np.einsum("...ji,...j->...i", h, delta_m) - np.asarray(psi_p, dtype=np.float64)
 
 
-def young_angle_rates(theta: ArrayLike, delta_m: ArrayLike, psi_p: ArrayLike) -> Array:
+def young_angle_rates(theta: ArrayLike, delta_m: ArrayLike, psi_p: ArrayLike) -> F64:
     """θ̇ (rad/s) of Young 1980 eqs. (51a)–(51c), the nonlinear orientation error equations.
 
     Parameters

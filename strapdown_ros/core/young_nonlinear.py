@@ -32,10 +32,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicHermiteSpline, CubicSpline, PPoly
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import OMEGA_IE
 from strapdown_ros.core.young import (
     C_NED_TO_UEN,
@@ -58,20 +59,19 @@ __all__ = [
     "wrap_angle",
 ]
 
-Array = NDArray[np.float64]
 
 #: Default tolerances of the integrators (DOP853): θ to about 1e-11 rad over hours.
 RTOL = 1e-11
 ATOL = 1e-13
 
 
-def wrap_angle(a: ArrayLike) -> Array:
+def wrap_angle(a: ArrayLike) -> F64:
     """Angles (rad) wrapped into [-π, π)."""
     a = np.asarray(a, dtype=np.float64)
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def _strictly_increasing(t: Array, name: str) -> None:
+def _strictly_increasing(t: F64, name: str) -> None:
     if t.ndim != 1 or t.shape[0] < 2:
         raise ValueError(f"{name}: need a 1-D time grid of at least 2 samples, got {t.shape}")
     if not np.all(np.diff(t) > 0):
@@ -93,11 +93,11 @@ class FrameTrack:
         φ̇, λ̇ (rad/s), e.g. ``v_N / (R_N + h)``, ``v_E / ((R_E + h) cos φ)``.
     """
 
-    t: Array
-    lat: Array
-    lon: Array
-    lat_rate: Array
-    lon_rate: Array
+    t: F64
+    lat: F64
+    lon: F64
+    lat_rate: F64
+    lon_rate: F64
 
     def __post_init__(self) -> None:
         for name in ("t", "lat", "lon", "lat_rate", "lon_rate"):
@@ -153,8 +153,8 @@ class OrientationInputs:
 
     true: FrameTrack
     indicated: FrameTrack
-    drift_t: Array | None = None
-    drift_angle_p: Array | None = None
+    drift_t: F64 | None = None
+    drift_angle_p: F64 | None = None
     omega: float = OMEGA_IE
     interpolation: str = "spline"
 
@@ -182,7 +182,7 @@ class OrientationInputs:
             lo, hi = max(lo, self.drift_t[0]), min(hi, self.drift_t[-1])
         return float(lo), float(hi)
 
-    def rates(self) -> Callable[[float], tuple[Array, Array, Array]]:
+    def rates(self) -> Callable[[float], tuple[F64, F64, F64]]:
         """The rates at time t: ``f(t) -> (δ_0^M, ψ^P, d^P)``.
 
         The commanded rates (eq. (47) without ε), the ideal frame's rates (eq. (39)) and the
@@ -197,7 +197,7 @@ class OrientationInputs:
             drift = CubicSpline(self.drift_t, self.drift_angle_p, axis=0).derivative()
         zero = np.zeros(3)
 
-        def f(t: float) -> tuple[Array, Array, Array]:
+        def f(t: float) -> tuple[F64, F64, F64]:
             delta0 = frame_rates(il(t), idl(t), idn(t), omega)
             psi = frame_rates(tl(t), tdl(t), tdn(t), omega)
             return delta0, psi, (zero if drift is None else drift(t))
@@ -205,7 +205,7 @@ class OrientationInputs:
         return f
 
 
-def drift_in_platform(c_b_n_true: ArrayLike, drift_b: ArrayLike) -> Array:
+def drift_in_platform(c_b_n_true: ArrayLike, drift_b: ArrayLike) -> F64:
     """Gyro errors (body FRD) in the true (up, east, north) local level.
 
     ``d^P = C_NED_TO_UEN C_B^N(true) δω^b``; the drift of eq. (44) in Σ_M axes is
@@ -230,19 +230,19 @@ class OrientationSolution:
         Right-hand-side evaluations.
     """
 
-    t: Array
-    theta: Array
+    t: F64
+    theta: F64
     nfev: int
 
 
 def _solve(
-    rhs: Callable[[float, Array], Array],
-    y0: Array,
-    t_eval: Array,
+    rhs: Callable[[float, F64], F64],
+    y0: F64,
+    t_eval: F64,
     rtol: float,
     atol: float,
     max_step: float,
-) -> tuple[Array, int]:
+) -> tuple[F64, int]:
     sol = solve_ivp(
         rhs,
         (float(t_eval[0]), float(t_eval[-1])),
@@ -258,7 +258,7 @@ def _solve(
     return sol.y.T, int(sol.nfev)
 
 
-def _times(inputs: OrientationInputs, t_eval: ArrayLike | None) -> Array:
+def _times(inputs: OrientationInputs, t_eval: ArrayLike | None) -> F64:
     lo, hi = inputs.span
     t = inputs.indicated.t if t_eval is None else np.asarray(t_eval, dtype=np.float64)
     t = t[(t >= lo) & (t <= hi)] if t_eval is None else t
@@ -285,7 +285,7 @@ def integrate_young(
     t = _times(inputs, t_eval)
     f = inputs.rates()
 
-    def rhs(tt: float, th: Array) -> Array:
+    def rhs(tt: float, th: F64) -> F64:
         delta0, psi, d_p = f(tt)
         delta = delta0 - young_dcm(th) @ d_p
         return young_angle_rates(th, delta, psi)
@@ -315,7 +315,7 @@ def integrate_young_dcm(
     t = _times(inputs, t_eval)
     f = inputs.rates()
 
-    def rhs(tt: float, y: Array) -> Array:
+    def rhs(tt: float, y: F64) -> F64:
         h = y.reshape(3, 3)
         delta0, psi, d_p = f(tt)
         delta = delta0 - h @ d_p
@@ -332,7 +332,7 @@ def integrate_young_dcm(
 
 def phi_angle_rates(
     theta: ArrayLike, delta0_m: ArrayLike, psi_p: ArrayLike, drift_p: ArrayLike
-) -> Array:
+) -> F64:
     """Small-angle limit of eq. (51): ``θ̇ = -ψ^P × θ + (δ_0^M - ψ^P) - d^P`` (rad/s).
 
     The phi-angle error equation ``φ̇ = -ω_in × φ + δω_in - C_b^n δω_ib^b`` in (up, east, north)
@@ -357,7 +357,7 @@ def integrate_phi_angle(
     t = _times(inputs, t_eval)
     f = inputs.rates()
 
-    def rhs(tt: float, th: Array) -> Array:
+    def rhs(tt: float, th: F64) -> F64:
         delta0, psi, d_p = f(tt)
         return phi_angle_rates(th, delta0, psi, d_p)
 

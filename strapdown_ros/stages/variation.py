@@ -30,10 +30,8 @@ from strapdown_ros.stages.intake import (
     InputEvents,
     decode_one,
     format_stamp,
-    nonfinite_rows,
+    screen,
     stamp_verdict,
-    stretches,
-    without_rows,
 )
 
 __all__ = [
@@ -436,29 +434,26 @@ class VariationStage:
 
     # -- checks --------------------------------------------------------------------------------
 
+    #: What the stage does with a message that :func:`~strapdown_ros.stages.intake.screen`
+    #: rejects (a NaN or an infinity, a degenerate orientation quaternion).
+    _REJECTED = "dropped (a lost message: the solution restarts after it)"
+
     def _drop_nonfinite(self, inp: _Input) -> _Input:
-        """``inp`` without its messages holding a NaN or an infinity (each stretch logged); a
-        dropped message is a lost one (the run restarts after it)."""
+        """``inp`` without its messages that are not fit to use (a NaN or an infinity, an
+        orientation quaternion of degenerate norm: the shared intake's
+        :func:`~strapdown_ros.stages.intake.screen`, each stretch logged); a dropped message
+        is a lost one (the run restarts after it). A small departure from unit norm is
+        normalized in the fields."""
         if inp.fields is None:
             return inp
-        bad = nonfinite_rows(inp.fields)
+        topic = self.topics[inp.kind]
+        fields, bad = screen(inp.fields, topic, self.events, self._REJECTED,
+                             lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
         if bad is None:
-            return inp
-        stamps = np.asarray(inp.fields.stamps_ns, dtype=np.int64)
-        self.events.dropped(self.topics[inp.kind], stamps[bad].tolist())
-        for a, b in stretches(bad):
-            span = format_stamp(int(stamps[a]))
-            if b > a:
-                span += f"..{format_stamp(int(stamps[b]))} ({b - a + 1} messages)"
-            self.events(
-                "non-finite",
-                f"{self.topics[inp.kind]}: stamp {span}: NaN or infinity in the message; "
-                "dropped (a lost message: the solution restarts after it)",
-                error=True,
-            )
+            return dataclasses.replace(inp, fields=fields)
         keep = np.flatnonzero(~bad)
         payloads = None if inp.payloads is None else [inp.payloads[k] for k in keep]
-        return _Input(inp.kind, without_rows(inp.fields, bad), payloads, inp.positions[keep])
+        return _Input(inp.kind, fields, payloads, inp.positions[keep])
 
     def _ingest(self, inputs: list[_Input]) -> None:
         """Take the messages in arrival order: the consistent ones in bulk, others one by one."""
@@ -608,15 +603,8 @@ class VariationStage:
             return None
         self.timing.decode_wall += time.perf_counter() - t
         self.timing.decoded += 1
-        if nonfinite_rows(msg) is not None:
-            self.events.dropped(topic, [int(msg.stamps_ns[0])])
-            self.events(
-                "non-finite",
-                f"{topic}: stamp {format_stamp(int(msg.stamps_ns[0]))}: NaN or infinity in "
-                "the message; dropped (a lost message: the solution restarts after it)",
-                error=True,
-            )
-            return None
+        msg, _ = screen(msg, topic, self.events, self._REJECTED,
+                        lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
         return msg
 
     def _cycle(self, kind: str, stamp: int) -> int | None:
