@@ -92,6 +92,7 @@ def test_bias_instability_reads_the_minimum_of_a_bathtub():
     is the grid point nearest in slope, its σ divided by √(2 ln 2/π) (IEEE Std 952)."""
     taus = np.geomspace(0.1, 1000.0, 81)
     b, tau_flat = allan.bias_instability(taus, _flicker_like(taus))
+    assert np.shape(b) == () and np.shape(tau_flat) == ()
     assert abs(np.log(tau_flat / (np.sqrt(3.0) * 1e-3 / 1e-4))) < np.log(taus[1] / taus[0])
     sigma_min = np.sqrt(2e-6 / (np.sqrt(3.0) * 10.0))
     np.testing.assert_allclose(b * np.sqrt(2 * np.log(2) / np.pi), sigma_min, rtol=2e-3)
@@ -112,12 +113,66 @@ def test_bias_instability_per_column_and_range():
 def test_bias_instability_input_errors():
     taus = np.array([1.0, 2.0, 4.0])
     allan.bias_instability(taus, np.array([3.0, 2.0, 3.0]), tau_max=4.0)  # 3 τ: enough
-    msg = "need >= 3 increasing τ and an adev with one row per τ"
+    msg = "^need >= 3 increasing τ and an adev with one row per τ$"
     with pytest.raises(ValueError, match=msg):
         allan.bias_instability(taus[:2], np.array([1.0, 1.0]))
     with pytest.raises(ValueError, match=msg):
         allan.bias_instability(taus, np.ones(4))
     with pytest.raises(ValueError, match=msg):
         allan.bias_instability(taus.reshape(1, 3), np.ones(3))
-    with pytest.raises(ValueError, match="no τ in the requested range"):
+    with pytest.raises(ValueError, match="^no τ in the requested range$"):
         allan.bias_instability(taus, np.ones(3), tau_min=10.0)
+
+
+# log σ on an uneven τ grid, written so that the slope (central difference in log-log) is
+# -0.455 at τ = 2, +0.144 at τ = 3 = τ_max/3 and exactly 0 at τ = 5 (beyond the default range).
+UNEVEN_TAUS = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 9.0])
+UNEVEN_LOG_ADEV = np.array([0.0, -1.0, -0.5, -0.9, -2.0, -0.9, -3.0])
+
+
+@pytest.mark.parametrize(
+    ("kw", "tau_want"),
+    [({}, 3.0), ({"tau_min": 2.0}, 3.0), ({"tau_min": 3.0}, 3.0), ({"tau_max": 100.0}, 5.0),
+     ({"tau_max": 2.9}, 2.0)],
+)  # fmt: skip
+def test_bias_instability_range_edges_on_an_uneven_grid(kw, tau_want):
+    """Default τ_max = largest τ / 3 and both bounds inclusive; the slope is a difference
+    quotient (on an even log grid any constant scaling would pick the same point)."""
+    adev = np.exp(UNEVEN_LOG_ADEV)
+    b, tau_flat = allan.bias_instability(UNEVEN_TAUS, adev, **kw)
+    assert tau_flat == tau_want
+    i = int(np.flatnonzero(UNEVEN_TAUS == tau_want)[0])
+    assert b == pytest.approx(adev[i] / np.sqrt(2.0 * np.log(2.0) / np.pi), rel=1e-15, abs=0.0)
+
+
+def test_bias_instability_slope_is_the_log_log_difference_quotient():
+    """Candidates whose log-σ differences and log-τ spacings rank differently: by the quotient
+    Δlnσ/Δlnτ the flattest is τ = 8000 s (0.4/3.91 = 0.10, against 0.05/0.18 = 0.27 at
+    1100 s); a product or a sum of the log τ would pick 1100 s."""
+    taus = 1000.0 * np.array([1.0, 1.1, 1.2, 8.0, 60.0, 3000.0])
+    log_adev = np.array([0.0, -1.0, 0.05, 1.0, 0.45, 4.0])
+    b, tau_flat = allan.bias_instability(taus, np.exp(log_adev))
+    assert tau_flat == 8000.0
+    assert b == pytest.approx(np.e / np.sqrt(2.0 * np.log(2.0) / np.pi), rel=1e-15, abs=0.0)
+
+
+@pytest.mark.parametrize("x", [1e-8, 1e-6, 3e-5, 9.9e-5, 2e-4, 1e-2, 1.0, 30.0])
+def test_gauss_markov_shape_against_mpmath(x):
+    """g(x) = σ²(τ)/σ² at x = τ/τ_c, from the closed form in 50-digit arithmetic (mpmath), on
+    both sides of the series switch at x = 1e-4. Measured relative errors: ≤ 1.2e-13 below the
+    switch (the series' x⁵ term), 1.1e-8 at x = 2e-4 and 3.4e-12 at 1e-2 (the cancelling
+    bracket, ~1e-16 / (x²/3)), ≤ 2e-16 from x = 1. Tolerances about 10× those; 1e-12 below the
+    switch also sees a 2 % change of the series' 7x⁴/60 term (6e-11 of g at x = 9.9e-5)."""
+    mpmath = pytest.importorskip("mpmath")
+    mpmath.mp.dps = 50
+    xm = mpmath.mpf(x)
+    want = float(2 / xm * (1 - (3 - 4 * mpmath.exp(-xm) + mpmath.exp(-2 * xm)) / (2 * xm)))
+    rtol = 1e-12 if x < 1e-4 else 1e-7 if x < 1e-3 else 1e-10 if x < 0.1 else 1e-14
+    got = allan.gauss_markov_allan_variance(np.array([x]), 1.0, 1.0)[0]
+    assert got == pytest.approx(want, rel=rtol, abs=0.0)
+
+
+def test_gauss_markov_needs_a_positive_correlation_time():
+    for tc in (0.0, -1.0):
+        with pytest.raises(ValueError, match=rf"^correlation_time_s must be > 0, got {tc}$"):
+            allan.gauss_markov_allan_variance(np.array([1.0]), 1.0, tc)

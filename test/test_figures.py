@@ -6,8 +6,8 @@ appears there, the command that produces it, the commit and load average it was 
 limits, definitions, constants), each with the reason. This module checks
 
 * every entry's text occurs in its file (a figure edited in the docs must be edited here too);
-* every measured entry names a command whose script, test (and test function), make target or
-  ``strapdown-sim`` subcommand exists in the repository;
+* every measured entry names a command whose script, test (and test function), make target,
+  ``strapdown-sim`` subcommand or ``python -m strapdown_ros...`` module exists in the repository;
 * every paragraph, table row and code block of README.md and docs/*.md that holds a figure-like
   token (a number followed by a unit: ``x``/``×``, s, ms, µs, Hz, kHz, MiB, MB, m, m/s, rad,
   msgs/s, %, ...) either names a command itself (a backticked script, test, make target or
@@ -152,6 +152,11 @@ def command_problems(command: str) -> list[str]:
         named += 1
         if sub not in _cli_commands():
             problems.append(f"strapdown-sim {sub}: no such subcommand")
+    for module in re.findall(r"-m (strapdown_ros(?:\.\w+)+)", command):
+        named += 1
+        path = REPO / (module.replace(".", "/") + ".py")
+        if not path.is_file():
+            problems.append(f"python -m {module}: no such module")
     if re.search(r"(?:^|[\s;])(?:python -m )?pytest(?:\s|$)", command):
         named += 1  # the test runner itself (a collection, a marker selection)
     if not named:
@@ -249,5 +254,9 @@ def test_command_check_rejects_what_does_not_exist() -> None:
         "test/test_figures.py::nope: no such test"
     ]
     assert command_problems("make nothing") == ["make nothing: no such target"]
+    assert command_problems("python -m strapdown_ros.cli --help") == []
+    assert command_problems("python -m strapdown_ros.nothing") == [
+        "python -m strapdown_ros.nothing: no such module"
+    ]
     assert command_problems('python -m pytest --collect-only -q -m "not slow"') == []
     assert len(command_problems("measured by hand")) == 1
