@@ -81,9 +81,11 @@ test: setup
 # The fast tier: no test that starts ROS processes (marker dds, set automatically by
 # test/tiers.py; rclpy is then blocked in pytest and its children) and none marked slow.
 FAST_MARKERS := not dds and not slow
+# two workers, each test file on one of them (module fixtures built once)
+FAST_WORKERS := -n 2 --dist loadfile
 test-fast: setup
 	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
-	$(VPY) -m pytest -m "$(FAST_MARKERS)" $(PYTEST_ARGS) || exit $$?; \
+	$(VPY) -m pytest -m "$(FAST_MARKERS)" $(FAST_WORKERS) $(PYTEST_ARGS) || exit $$?; \
 	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
 
 # Benchmark-only dependencies (pyins for bench/bench_peers.py), pinned in requirements/bench.txt

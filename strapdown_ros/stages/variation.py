@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch, merge_order, stream_batches
+from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.variation import VariationSpec
 from strapdown_ros.core.exact_update import Residuals
@@ -33,6 +33,7 @@ from strapdown_ros.stages.intake import (
     screen,
     stamp_verdict,
 )
+from strapdown_ros.stages.trajectory import named_stream_batches
 
 __all__ = [
     "IMU",
@@ -82,22 +83,9 @@ def variation_streams(scenario: Scenario, reference: Stream) -> tuple[Stream, St
 
 def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream) -> list[Batch]:
     """Serialized ``/variation/*`` and ``/variation/reference/*`` batches (recording names)."""
-    rec = scenario.recording
-    batches = stream_batches(
-        variation,
-        imu_topic=rec.topics["variation_imu"],
-        odom_topic=rec.topics["variation_odom"],
-        fix_topic=rec.topics["variation_fix"],
-        body_frame=rec.frames["variation_imu"],
-        earth_frame=rec.frames["earth"],
-    )
-    batches += stream_batches(
-        regenerated,
-        imu_topic=rec.topics["variation_reference_imu"],
-        odom_topic=rec.topics["variation_reference_odom"],
-        fix_topic=None,
-        body_frame=rec.frames["reference_imu"],
-        earth_frame=rec.frames["earth"],
+    batches = named_stream_batches(scenario, variation, "variation", "variation_imu")
+    batches += named_stream_batches(
+        scenario, regenerated, "variation_reference", "reference_imu", fix=False
     )
     return batches
 
@@ -682,17 +670,11 @@ class VariationStage:
         imu = self.buffer[IMU].frames(m)
         odom = self.buffer[ODOM].frames(m)
         if imu is not None and odom is not None and imu.frame_id != odom.child_frame_id:
-            self.events(
-                "wrong frame",
-                f"{self.describe(m)}: Imu frame_id {imu.frame_id!r} differs from the Odometry "
-                f"child_frame_id {odom.child_frame_id!r}: the reference messages do not "
-                f"describe one body; rejected, the solution restarts at cycle {m + 1}",
-                error=True,
+            return self._reject_frames(
+                m,
+                f"Imu frame_id {imu.frame_id!r} differs from the Odometry child_frame_id "
+                f"{odom.child_frame_id!r}: the reference messages do not describe one body",
             )
-            self.buffer[IMU].discard(m)
-            self.buffer[ODOM].discard(m)
-            self.restart(m + 1, "", log=False)
-            return False
         for msg, name in ((imu, "Imu frame_id"), (odom, "Odometry child_frame_id")):
             if msg is None:
                 continue
@@ -707,17 +689,23 @@ class VariationStage:
                         f"reference_imu {expected!r}; the output carries the scenario's frames"
                     )
             elif frame != self.body_frame:
-                self.events(
-                    "wrong frame",
-                    f"{self.describe(m)}: {name} {frame!r} differs from the run's body frame "
-                    f"{self.body_frame!r}; rejected, the solution restarts at cycle {m + 1}",
-                    error=True,
+                return self._reject_frames(
+                    m, f"{name} {frame!r} differs from the run's body frame {self.body_frame!r}"
                 )
-                self.buffer[IMU].discard(m)
-                self.buffer[ODOM].discard(m)
-                self.restart(m + 1, "", log=False)
-                return False
         return True
+
+    def _reject_frames(self, m: int, why: str) -> bool:
+        """Cycle ``m``'s messages rejected for their frames (a ``wrong frame`` event); the
+        solution restarts at the next cycle. Returns False (not accepted)."""
+        self.events(
+            "wrong frame",
+            f"{self.describe(m)}: {why}; rejected, the solution restarts at cycle {m + 1}",
+            error=True,
+        )
+        self.buffer[IMU].discard(m)
+        self.buffer[ODOM].discard(m)
+        self.restart(m + 1, "", log=False)
+        return False
 
     # -- solving -------------------------------------------------------------------------------
 
