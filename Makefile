@@ -123,6 +123,7 @@ figures: setup
 # `.venv/bin/mutmut results`, a survivor's diff: `.venv/bin/mutmut show NAME`.
 MUTATION_ARGS ?=
 mutation: setup
+	$(VPY) -m pip install -q -r requirements/mutation.txt
 	$(VPY) -m mutmut run $(MUTATION_ARGS)
 
 # The main job: the live pipeline (nodes as processes over DDS, recorded into a bag) on the
