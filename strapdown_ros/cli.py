@@ -409,8 +409,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     behind a one-line summary.
     """
     args = build_parser().parse_args(argv)
+    from strapdown_ros.requirements_check import MissingDependencyError, exit_if_unsupported
+
+    exit_if_unsupported("strapdown-sim")  # a library older than supported: say so, exit 1
     try:
         return _dispatch(args)
+    except MissingDependencyError as exc:  # an optional feature's library (campaign, magnetometer)
+        print(f"strapdown-sim {args.command}: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         described = _describe_output(getattr(args, "out", None))
         print(
