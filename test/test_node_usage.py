@@ -1,16 +1,19 @@
 """Every executable answers ``--help`` (exit 0) and bad arguments (exit 2) without ROS.
 
-The executables run as child processes, as a user types them. This is a ROS-free test (no
-``ros_env``): in the fast tier rclpy is unimportable in the children too (test/tiers.py), so a
-``--help`` that imported rclpy would fail here. Each answer must come within
+The executables run as child processes, as a user types them, with the ROS-free tier's stand-in
+``rclpy`` (test/ros_free: importing it raises ImportError) first on their ``PYTHONPATH``
+whatever the tier of the session, so a ``--help`` or an argument error that imported rclpy
+fails here. Each answer must come within
 :data:`ANSWER_S`, measured (about 0.1 s per call on the development machine; a start-up that
 loaded numba, scipy or rclpy takes 1-3 s).
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import time
+from pathlib import Path
 
 import pytest
 from node_testing import executable
@@ -20,13 +23,16 @@ from strapdown_ros.nodes import usage
 NODES = tuple(usage.PARAMETERS)
 #: Seconds an answer may take (CPU contention on CI included).
 ANSWER_S = 5.0
+STUB = Path(__file__).resolve().parent / "ros_free"
 
 
 def _run(name: str, *args: str) -> tuple[int, str, float]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(STUB), env.get("PYTHONPATH")) if p)
     start = time.monotonic()
     proc = subprocess.run(
         [executable(name), *args], capture_output=True, text=True, timeout=30,
-        stdin=subprocess.DEVNULL,
+        stdin=subprocess.DEVNULL, env=env,
     )  # fmt: skip
     return proc.returncode, proc.stdout + proc.stderr, time.monotonic() - start
 
