@@ -1,0 +1,255 @@
+"""What ``launch/pipeline.launch.py`` starts, decided in plain Python (no ``launch`` import).
+
+The launch file's ``OpaqueFunction`` calls :func:`plan_launch` with its arguments (scenario,
+out, force, duration_s, rate_factor) and turns the :class:`LaunchPlan` into ``Node`` actions and
+one exit handler per node. Everything that can be wrong is decided here, before any process
+starts, so it is testable without ``launch``/``launch_ros`` (which are not on PyPI):
+
+* the nodes the scenario needs and, for each, ``subscribers_per_topic`` (the start-up
+  handshake: every output topic waits for the recorder plus the downstream nodes) computed from
+  the scenario, as ``strapdown-sim run`` computes them (:func:`pipeline_counts`; any scenario,
+  not only the one ``config/params.yaml`` was written for);
+* the output directory: absolute; by default a new time-stamped one in the current directory
+  (``strapdown_run_YYYY_MM_DD-HH_MM_SS``, like ``ros2 bag record``'s ``rosbag2_...``), never an
+  existing one; an existing ``out:=`` is refused unless ``force:=true`` (:class:`LaunchError`,
+  before anything starts);
+* :func:`exit_reason`: the shutdown reason when a node exits with an error (the launch file then
+  shuts the whole launch down at once instead of leaving the others to their timeouts).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "LaunchError",
+    "LaunchPlan",
+    "NodePlan",
+    "default_out",
+    "exit_reason",
+    "pipeline_counts",
+    "plan_launch",
+    "resolve_out",
+]
+
+#: Prefix of the default output directory.
+OUT_PREFIX = "strapdown_run"
+#: Exit statuses of the nodes (those of strapdown-sim).
+EXIT_MEANING = {1: "failure while running", 2: "invalid argument, parameter or scenario"}
+
+
+class LaunchError(ValueError):
+    """A launch argument that cannot work; the message says which and what to do."""
+
+
+@dataclass(frozen=True)
+class NodePlan:
+    """One node of the launch: its executable and the parameters set over params.yaml."""
+
+    name: str
+    parameters: dict[str, Any]
+
+
+@dataclass
+class LaunchPlan:
+    """What the launch starts."""
+
+    out: Path
+    nodes: list[NodePlan] = field(default_factory=list)
+
+    def node(self, name: str) -> NodePlan:
+        return next(n for n in self.nodes if n.name == name)
+
+
+def default_out(cwd: str | os.PathLike[str] | None = None, now: float | None = None) -> Path:
+    """``<cwd>/strapdown_run_YYYY_MM_DD-HH_MM_SS`` (local time), with ``_2``, ``_3``... if that
+    exists already (two launches in the same second)."""
+    base = Path(cwd if cwd is not None else os.getcwd()).absolute()
+    stamp = time.strftime("%Y_%m_%d-%H_%M_%S", time.localtime(now))
+    out = base / f"{OUT_PREFIX}_{stamp}"
+    k = 2
+    while out.exists():
+        out = base / f"{OUT_PREFIX}_{stamp}_{k}"
+        k += 1
+    return out
+
+
+def resolve_out(out: str, force: bool, cwd: str | os.PathLike[str] | None = None) -> Path:
+    """The absolute output directory of ``out:=`` (empty: :func:`default_out`).
+
+    Raises :class:`LaunchError` when it exists and ``force`` is false.
+    """
+    if not out.strip():
+        return default_out(cwd)
+    path = Path(out).expanduser()
+    if not path.is_absolute():
+        path = Path(cwd if cwd is not None else os.getcwd()).absolute() / path
+    if path.exists() and not force:
+        raise LaunchError(
+            f"out:={out}: {path} exists already; choose another out:=, leave out:= unset for a "
+            "new time-stamped directory, or set force:=true to replace it"
+        )
+    return path
+
+
+def parse_bool(name: str, text: str) -> bool:
+    """A launch argument's boolean (true/false, as ROS parameters spell them)."""
+    value = text.strip().lower()
+    if value in ("true", "1", "yes"):
+        return True
+    if value in ("false", "0", "no"):
+        return False
+    raise LaunchError(f"{name}:={text}: must be true or false")
+
+
+def parse_float(name: str, text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise LaunchError(f"{name}:={text}: must be a number") from None
+
+
+def pipeline_counts(scenario: Any) -> dict[str, dict[str, int]]:
+    """Node → {output topic: subscriptions to wait for}, for the nodes the scenario needs.
+
+    The same counts as ``strapdown-sim run`` (:func:`strapdown_ros.pipeline.run_pipeline`):
+    every produced topic has the recorder, plus the pipeline's nodes on their inputs; each node
+    also waits on the TF / map-frame topics it derives. This is the one place the launch
+    computes them (to be taken from the pipeline's plan once it has one);
+    test/test_launch_logic.py checks they equal what ``run`` passes, scenario by scenario.
+    """
+    from strapdown_ros.config.navigator import navigator_spec
+    from strapdown_ros.pipeline import expected_counts
+    from strapdown_ros.stages.aiding import aiding_spec
+    from strapdown_ros.stages.frames import FramesStage, node_derived_topics
+
+    expected = expected_counts(scenario)
+    topics = scenario.recording.topics
+    subs = dict.fromkeys(expected, 1)
+    nav = navigator_spec(scenario)
+    if scenario.variation is not None:
+        subs[topics["reference_imu"]] += 1
+        subs[topics["reference_odom"]] += 1
+    if scenario.imu_errors is not None:
+        subs[scenario.imu_errors.topics(topics)[0]] += 1
+    aiding = aiding_spec(scenario)
+    aiding_topics = aiding.topics() if aiding else []
+    if aiding_topics:
+        subs[topics["reference_odom"]] += 1
+    if nav is not None:
+        subs[nav.imu_topic] += 1
+        if nav.truth_topic:
+            subs[nav.truth_topic] += 1
+    frames = FramesStage(scenario, cycles=max(expected.get(topics["reference_odom"], 1) - 1, 0))
+
+    def counts(names: list[str], derived: bool = True, static: bool = False) -> dict[str, int]:
+        if derived:
+            names = names + list(node_derived_topics(frames, names, static=static))
+        return {t: subs[t] for t in names if t in subs}
+
+    out: dict[str, dict[str, int]] = {}
+    if nav is not None:
+        out["navigator_node"] = counts([
+            topics[f"navigator_{k}"]
+            for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude")
+        ])  # fmt: skip
+    if aiding_topics:
+        out["aiding_node"] = counts(list(aiding_topics), derived=False)
+    if scenario.imu_errors is not None:
+        out["imu_model_node"] = counts([scenario.imu_errors.topics(topics)[1]])
+    if scenario.variation is not None:
+        out["variation_node"] = counts([
+            topics[k]
+            for k in ("variation_imu", "variation_odom", "variation_fix",
+                      "variation_reference_imu", "variation_reference_odom")
+        ])  # fmt: skip
+    traj = [topics[k] for k in ("reference_imu", "reference_odom", "reference_fix")]
+    if scenario.recording.clock:
+        traj.append(topics["clock"])
+    out["trajectory_node"] = counts(traj, static=True)
+    return out
+
+
+def _per_topic(counts: dict[str, int]) -> list[str]:
+    return [f"{topic}={n}" for topic, n in counts.items()]
+
+
+def plan_launch(
+    scenario_path: str,
+    out: str = "",
+    *,
+    force: str | bool = False,
+    duration_s: str | float = 0.0,
+    rate_factor: str | float = 1.0,
+    cwd: str | os.PathLike[str] | None = None,
+) -> LaunchPlan:
+    """The nodes, their parameters and the output directory of a launch.
+
+    Arguments are the launch arguments (strings, as ``ros2 launch`` passes them, or values).
+    ``rate_factor`` > 1 or <= 0 (unpaced) turns on flow control as ``strapdown-sim run`` does
+    (the trajectory node never runs more than a window ahead of any consumer: lossless).
+    Raises :class:`LaunchError` for a bad argument or an existing ``out`` without ``force``,
+    and the scenario's :class:`~strapdown_ros.config.ScenarioError`.
+    """
+    from strapdown_ros.config import load_scenario
+
+    force = force if isinstance(force, bool) else parse_bool("force", force)
+    duration = parse_float("duration_s", duration_s) if isinstance(duration_s, str) else duration_s
+    rate = parse_float("rate_factor", rate_factor) if isinstance(rate_factor, str) else rate_factor
+    if duration < 0:
+        raise LaunchError(f"duration_s:={duration_s}: must be >= 0 (0: the scenario's)")
+    path = Path(scenario_path).expanduser()
+    if not path.is_absolute():
+        path = Path(cwd if cwd is not None else os.getcwd()).absolute() / path
+    scenario = load_scenario(path, [], duration if duration > 0 else None)
+    out_dir = resolve_out(out, force, cwd)
+
+    flow = rate > 1 or rate <= 0
+    counts = pipeline_counts(scenario)
+    common: dict[str, Any] = {"scenario": str(path), "duration_s": float(duration)}
+    node_params: dict[str, Any] = {"qos_depth": 10000}
+    if flow:
+        node_params |= {"report_progress": True, "idle_timeout_s": 120.0}
+    plan = LaunchPlan(out=out_dir)
+    recorder = {"scenario": str(path), "output": str(out_dir), "force": force,
+                "stop_when_done": True}  # fmt: skip
+    if flow:
+        recorder["report_progress"] = True
+    plan.nodes.append(NodePlan("bag_recorder", recorder))
+    flow_nodes = ["bag_recorder"]
+    for name in ("navigator_node", "aiding_node", "imu_model_node", "variation_node"):
+        if name in counts:
+            params = {**common, **node_params, "subscribers_per_topic": _per_topic(counts[name])}
+            plan.nodes.append(NodePlan(name, params))
+            flow_nodes.append(name)
+    traj = {
+        **common,
+        "subscribers_per_topic": _per_topic(counts["trajectory_node"]),
+        "time_source": "sim" if scenario.recording.clock else "wall",
+        "wait_for_all_topics": False,
+        "rate_factor": float(rate),
+        "qos_depth": 10000,
+    }
+    if flow:
+        traj["flow_nodes"] = flow_nodes
+    plan.nodes.append(NodePlan("trajectory_node", traj))
+    return plan
+
+
+def exit_reason(name: str, returncode: int | None) -> str | None:
+    """The reason to shut the launch down when node ``name`` exited with ``returncode``;
+    None when it finished normally (0) and the others go on to their own end."""
+    if returncode in (0, None):
+        return None
+    if returncode < 0:
+        meaning = f"killed by signal {-returncode}"
+    else:
+        meaning = EXIT_MEANING.get(returncode, "error")
+    return (
+        f"{name} exited with status {returncode} ({meaning}); stopping the other nodes "
+        "(its log above says why)"
+    )
