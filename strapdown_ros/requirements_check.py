@@ -50,7 +50,7 @@ MINIMUM: dict[str, str] = {
     "PyYAML": "6.0.1",
     "matplotlib": "3.7.3",
     "pydantic": "2.1.1",
-    "rosbags": "0.9.11",
+    "rosbags": "0.10.9",
     "mcap": "1.0.0",
     "dask": "2023.9.0",
     "distributed": "2023.9.0",
