@@ -12,7 +12,8 @@ node's ``subscribers_per_topic`` (the start-up handshake, so the start order doe
 no message is lost, for any scenario), the output directory (default: a new
 ``strapdown_run_YYYY_MM_DD-HH_MM_SS`` in the current directory; an existing ``out:=`` is refused
 before anything starts unless ``force:=true``), flow control above real time. When any node
-exits with an error the whole launch shuts down at once, with the reason.
+exits with an error the whole launch shuts down at once, with the reason, and ``ros2 launch``
+exits with status 1.
 
 This is the pipeline of ``strapdown-sim run``. ``launch`` / ``launch_ros`` are imported inside
 the functions so that this file imports (and is linted and tested) without them.
@@ -31,12 +32,12 @@ NODES = (
 
 def _nodes(context, params):
     """OpaqueFunction: the launch arguments → the Node actions and their exit handlers."""
-    from launch.actions import RegisterEventHandler, Shutdown
+    from launch.actions import RegisterEventHandler
     from launch.event_handlers import OnProcessExit
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
 
-    from strapdown_ros.launch_logic import exit_reason, plan_launch
+    from strapdown_ros.launch_logic import NodeFailedError, exit_reason, plan_launch
 
     def arg(name):
         return LaunchConfiguration(name).perform(context)
@@ -56,8 +57,13 @@ def _nodes(context, params):
         )
 
         def on_exit(event, _context, name=node.name):
+            # An error here takes launch's own error path: the reason logged as an ERROR, the
+            # Shutdown event (reason = that message) stops every node at once, and ros2 launch
+            # exits with status 1 (a Shutdown action would end it with status 0).
             reason = exit_reason(name, event.returncode)
-            return [Shutdown(reason=reason)] if reason else []
+            if reason:
+                raise NodeFailedError(reason)
+            return []
 
         actions += [action, RegisterEventHandler(OnProcessExit(target_action=action,
                                                                on_exit=on_exit))]  # fmt: skip

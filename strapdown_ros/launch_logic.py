@@ -28,6 +28,7 @@ from typing import Any
 __all__ = [
     "LaunchError",
     "LaunchPlan",
+    "NodeFailedError",
     "NodePlan",
     "default_out",
     "exit_reason",
@@ -44,6 +45,11 @@ EXIT_MEANING = {1: "failure while running", 2: "invalid argument, parameter or s
 
 class LaunchError(ValueError):
     """A launch argument that cannot work; the message says which and what to do."""
+
+
+class NodeFailedError(RuntimeError):
+    """A node exited with an error: raised in the launch's exit handler, it shuts the launch
+    down (launch logs it as the reason and exits with status 1)."""
 
 
 @dataclass(frozen=True)

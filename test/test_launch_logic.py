@@ -8,7 +8,8 @@
   refused unless ``force:=true``, relative paths made absolute.
 * A failing node: :func:`exit_reason` gives the shutdown reason, and the launch file's exit
   handlers (run here against a minimal stand-in of the ``launch`` API, since ``launch`` is not
-  installable from PyPI) return a ``Shutdown`` for a non-zero exit and nothing for 0.
+  installable from PyPI) raise :class:`NodeFailedError` with it for a non-zero exit (launch
+  then shuts everything down and exits 1) and do nothing for 0.
 
 The launch file on the real ``launch``/``launch_ros`` (OnProcessExit → Shutdown, a second
 launch into the same out) is checked by hand with a scratch Jazzy ``ros2 launch``; see
@@ -223,7 +224,7 @@ def _fake_launch_modules() -> dict[str, types.ModuleType]:
         def perform(self, context):
             return context[self.name]
 
-    for name in ("RegisterEventHandler", "Shutdown", "LogInfo"):
+    for name in ("RegisterEventHandler", "LogInfo"):
         setattr(mods["launch.actions"], name, type(name, (_Action,), {}))
     mods["launch.event_handlers"].OnProcessExit = type("OnProcessExit", (_Action,), {})
     mods["launch.substitutions"].LaunchConfiguration = LaunchConfiguration
@@ -231,7 +232,7 @@ def _fake_launch_modules() -> dict[str, types.ModuleType]:
     return mods
 
 
-def test_launch_file_shuts_down_on_a_failing_node(tmp_path, monkeypatch) -> None:
+def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
     for name, module in _fake_launch_modules().items():
         monkeypatch.setitem(sys.modules, name, module)
     spec = importlib.util.spec_from_file_location("pipeline_launch_fake", LAUNCH)
@@ -257,9 +258,9 @@ def test_launch_file_shuts_down_on_a_failing_node(tmp_path, monkeypatch) -> None
         assert params[0].endswith("params.yaml") and isinstance(params[1], dict)
         callback = on_exit.kwargs["on_exit"]
         assert callback(types.SimpleNamespace(returncode=0), None) == []
-        (shutdown,) = callback(types.SimpleNamespace(returncode=2), None)
-        assert type(shutdown).__name__ == "Shutdown"
-        assert f"{node.kwargs['executable']} exited with status 2" in shutdown.kwargs["reason"]
+        with pytest.raises(launch_logic.NodeFailedError, match=(
+                f"{node.kwargs['executable']} exited with status 2")):  # fmt: skip
+            callback(types.SimpleNamespace(returncode=2), None)
 
 
 def test_scenarios_all_plan(tmp_path) -> None:
