@@ -16,7 +16,9 @@ exits with an error the whole launch shuts down at once, with the reason, and ``
 exits with status 1.
 
 This is the pipeline of ``strapdown-sim run``. ``launch`` / ``launch_ros`` are imported inside
-the functions so that this file imports (and is linted and tested) without them.
+the functions so that this file imports (and is linted and tested) without them. The process
+running this file needs nothing but the standard library and ``strapdown_ros.launch_logic``'s
+stdlib part: the plan is computed by the Python the nodes run with.
 """
 
 #: Every node the launch can start (those a scenario needs: strapdown_ros.launch_logic).
@@ -32,18 +34,27 @@ NODES = (
 
 def _nodes(context, params):
     """OpaqueFunction: the launch arguments → the Node actions and their exit handlers."""
-    from launch.actions import RegisterEventHandler
+    from launch.actions import LogInfo, RegisterEventHandler
     from launch.event_handlers import OnProcessExit
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
+    from launch_ros.substitutions import FindPackagePrefix
 
-    from strapdown_ros.launch_logic import NodeFailedError, exit_reason, plan_launch
+    from strapdown_ros.launch_logic import (
+        NodeFailedError,
+        exit_reason,
+        node_interpreter,
+        plan_launch_with,
+    )
 
     def arg(name):
         return LaunchConfiguration(name).perform(context)
 
-    plan = plan_launch(
-        arg("scenario"), arg("out"), force=arg("force"), duration_s=arg("duration_s"),
+    # Planned by the nodes' own Python (their executables' #! line), which may be a venv that
+    # the Python running ros2 launch does not see (the documented system install).
+    python = node_interpreter(FindPackagePrefix("strapdown_ros").perform(context))
+    plan = plan_launch_with(
+        python, arg("scenario"), arg("out"), force=arg("force"), duration_s=arg("duration_s"),
         rate_factor=arg("rate_factor"),
     )  # fmt: skip
     actions = []
@@ -56,19 +67,18 @@ def _nodes(context, params):
             parameters=[params.perform(context), node.parameters],
         )
 
-        def on_exit(event, _context, name=node.name):
+        def on_exit(event, launch_context, name=node.name):
             # An error here takes launch's own error path: the reason logged as an ERROR, the
             # Shutdown event (reason = that message) stops every node at once, and ros2 launch
-            # exits with status 1 (a Shutdown action would end it with status 0).
-            reason = exit_reason(name, event.returncode)
+            # exits with status 1 (a Shutdown action would end it with status 0). The nodes
+            # stopped by that shutdown (or by Ctrl-C) exit afterwards: no second reason.
+            reason = exit_reason(name, event.returncode, launch_context.is_shutdown)
             if reason:
                 raise NodeFailedError(reason)
             return []
 
         actions += [action, RegisterEventHandler(OnProcessExit(target_action=action,
                                                                on_exit=on_exit))]  # fmt: skip
-    from launch.actions import LogInfo
-
     started = ", ".join(n.name for n in plan.nodes)
     return [LogInfo(msg=f"strapdown_ros: recording into {plan.out}; nodes {started}"), *actions]
 

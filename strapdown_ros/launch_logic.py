@@ -15,13 +15,27 @@ starts, so it is testable without ``launch``/``launch_ros`` (which are not on Py
   before anything starts);
 * :func:`exit_reason`: the shutdown reason when a node exits with an error (the launch file then
   shuts the whole launch down at once instead of leaving the others to their timeouts).
+
+The plan is computed by the Python that runs the nodes, not by the one running ``ros2 launch``:
+on a Jazzy system install ``ros2`` is ``/usr/bin/python3`` (noble's pydantic 1.10, no numba),
+while the nodes run in the venv of the documented pip step (their executables' ``#!`` line).
+The launch file calls :func:`plan_launch_with` (this module's stdlib part only), which runs
+``python -m strapdown_ros.launch_logic`` (:func:`main`, JSON out) under
+:func:`node_interpreter`; that child checks the libraries first (the fix is the launch's error).
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import shlex
+import shutil
+import subprocess
+import sys
 import time
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,8 +46,11 @@ __all__ = [
     "NodePlan",
     "default_out",
     "exit_reason",
+    "main",
+    "node_interpreter",
     "pipeline_counts",
     "plan_launch",
+    "plan_launch_with",
     "resolve_out",
 ]
 
@@ -41,6 +58,10 @@ __all__ = [
 OUT_PREFIX = "strapdown_run"
 #: Exit statuses of the nodes (those of strapdown-sim).
 EXIT_MEANING = {1: "failure while running", 2: "invalid argument, parameter or scenario"}
+#: The node executable whose interpreter plans the launch (all are installed with the same one).
+PLANNER_EXECUTABLE = "trajectory_node"
+#: Seconds the planning child may take (it loads the scenario: about 1 s).
+PLAN_TIMEOUT_S = 120.0
 
 
 class LaunchError(ValueError):
@@ -69,6 +90,14 @@ class LaunchPlan:
 
     def node(self, name: str) -> NodePlan:
         return next(n for n in self.nodes if n.name == name)
+
+    def to_json(self) -> str:
+        return json.dumps({"out": str(self.out), "nodes": [asdict(n) for n in self.nodes]})
+
+    @classmethod
+    def from_json(cls, text: str) -> LaunchPlan:
+        data = json.loads(text)
+        return cls(Path(data["out"]), [NodePlan(n["name"], n["parameters"]) for n in data["nodes"]])
 
 
 def default_out(cwd: str | os.PathLike[str] | None = None, now: float | None = None) -> Path:
@@ -246,10 +275,94 @@ def plan_launch(
     return plan
 
 
-def exit_reason(name: str, returncode: int | None) -> str | None:
-    """The reason to shut the launch down when node ``name`` exited with ``returncode``;
-    None when it finished normally (0) and the others go on to their own end."""
-    if returncode in (0, None):
+def node_interpreter(prefix: str | os.PathLike[str]) -> str:
+    """The Python running the package's nodes: the ``#!`` line of
+    ``<prefix>/lib/strapdown_ros/trajectory_node`` (or, where the path is too long for one,
+    the ``#!/bin/sh`` + ``'''exec' PYTHON`` form that pip writes)."""
+    script = Path(prefix) / "lib" / "strapdown_ros" / PLANNER_EXECUTABLE
+    try:
+        with script.open("rb") as fh:
+            head = fh.read(4096).decode("utf-8", "replace").splitlines()
+    except OSError as exc:
+        raise LaunchError(
+            f"cannot read the node executable {script} ({exc.strerror}); build the package "
+            "(colcon build) and source its install/setup.bash"
+        ) from None
+    line = head[0][2:].strip() if head and head[0].startswith("#!") else ""
+    words = shlex.split(line) if line else []
+    sh_exec = "'''exec' "
+    if words == ["/bin/sh"] and len(head) > 1 and head[1].startswith(sh_exec):
+        words = shlex.split(head[1][len(sh_exec) :])
+    elif words and Path(words[0]).name == "env" and len(words) > 1:
+        words = [shutil.which(words[1]) or words[1]]
+    if not words:
+        raise LaunchError(f"{script} has no interpreter line (#!): reinstall the package")
+    return words[0]
+
+
+def plan_launch_with(
+    python: str,
+    scenario_path: str,
+    out: str = "",
+    *,
+    force: str | bool = False,
+    duration_s: str | float = 0.0,
+    rate_factor: str | float = 1.0,
+    cwd: str | os.PathLike[str] | None = None,
+) -> LaunchPlan:
+    """:func:`plan_launch` computed by ``python`` (:func:`node_interpreter`) in a child process.
+
+    Raises :class:`LaunchError` with the child's message when it refuses (a bad argument or
+    scenario, an existing ``out``, an unsupported library with its fix) or fails.
+    """
+    args = [python, "-m", __name__, str(scenario_path), "--out", str(out), "--force",
+            str(force).lower(), "--duration-s", str(duration_s), "--rate-factor",
+            str(rate_factor), "--cwd", str(cwd if cwd is not None else os.getcwd())]  # fmt: skip
+    try:
+        proc = subprocess.run(args, capture_output=True, text=True, timeout=PLAN_TIMEOUT_S,
+                              stdin=subprocess.DEVNULL)  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise LaunchError(f"planning the launch with {python} failed: {exc}") from None
+    if proc.returncode != 0:
+        message = proc.stderr.strip() or f"{python} -m {__name__} exited {proc.returncode}"
+        raise LaunchError(message)
+    return LaunchPlan.from_json(proc.stdout)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m strapdown_ros.launch_logic SCENARIO [--out ...]``: the plan as JSON on
+    stdout; a refusal on stderr with exit status 2 (1 for unsupported libraries)."""
+    parser = argparse.ArgumentParser(prog=f"python -m {__name__}")
+    parser.add_argument("scenario")
+    parser.add_argument("--out", default="")
+    parser.add_argument("--force", default="false")
+    parser.add_argument("--duration-s", default="0.0")
+    parser.add_argument("--rate-factor", default="1.0")
+    parser.add_argument("--cwd", default=None)
+    ns = parser.parse_args(argv)
+    from strapdown_ros.requirements_check import exit_if_unsupported
+
+    exit_if_unsupported("pipeline.launch.py")
+    from strapdown_ros.config import ScenarioError
+
+    try:
+        plan = plan_launch(ns.scenario, ns.out, force=ns.force, duration_s=ns.duration_s,
+                           rate_factor=ns.rate_factor, cwd=ns.cwd)  # fmt: skip
+    except (LaunchError, ScenarioError) as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    print(plan.to_json())
+    return 0
+
+
+def exit_reason(name: str, returncode: int | None, shutting_down: bool = False) -> str | None:
+    """The reason to shut the launch down when node ``name`` exited with ``returncode``.
+
+    None when it finished normally (0; the others go on to their own end) and when the launch
+    is shutting down already (``shutting_down``: a node failed before, or Ctrl-C): the nodes
+    launch stops then exit by its SIGINT, which is no new reason.
+    """
+    if returncode in (0, None) or shutting_down:
         return None
     if returncode < 0:
         meaning = f"killed by signal {-returncode}"
@@ -259,3 +372,7 @@ def exit_reason(name: str, returncode: int | None) -> str | None:
         f"{name} exited with status {returncode} ({meaning}); stopping the other nodes "
         "(its log above says why)"
     )
+
+
+if __name__ == "__main__":
+    sys.exit(main())

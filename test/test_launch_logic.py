@@ -19,6 +19,9 @@ test_launch.py for the tests that run when ``launch`` is importable.
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
+import subprocess
 import sys
 import types
 from pathlib import Path
@@ -202,50 +205,137 @@ def test_exit_reason() -> None:
     assert "bag_recorder exited with status 2" in reason and "invalid" in reason
     assert "failure while running" in launch_logic.exit_reason("aiding_node", 1)
     assert "signal 9" in launch_logic.exit_reason("trajectory_node", -9)
+    # stopped by the launch's own shutdown (an earlier failure, Ctrl-C): no second reason
+    assert launch_logic.exit_reason("bag_recorder", -2, shutting_down=True) is None
+    assert launch_logic.exit_reason("aiding_node", 1, shutting_down=True) is None
+
+
+# --- where the plan is computed: the nodes' interpreter ------------------------------------------
+
+
+def _script(prefix: Path, text: str) -> Path:
+    path = prefix / "lib" / "strapdown_ros" / "trajectory_node"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+def test_node_interpreter_reads_the_executables_interpreter_line(tmp_path) -> None:
+    _script(tmp_path, "#!/home/u/venv/bin/python3\nimport sys\n")
+    assert launch_logic.node_interpreter(tmp_path) == "/home/u/venv/bin/python3"
+    # pip's form for a path too long (or with spaces) for a #! line
+    _script(tmp_path, "#!/bin/sh\n'''exec' \"/a b/venv/bin/python\" \"$0\" \"$@\"\n' '''\n")
+    assert launch_logic.node_interpreter(tmp_path) == "/a b/venv/bin/python"
+    _script(tmp_path, "#!/usr/bin/env python3\n")
+    assert Path(launch_logic.node_interpreter(tmp_path)).name.startswith("python3")
+    _script(tmp_path, "import sys\n")
+    with pytest.raises(launch_logic.LaunchError, match="no interpreter line"):
+        launch_logic.node_interpreter(tmp_path)
+    with pytest.raises(launch_logic.LaunchError, match="colcon build"):
+        launch_logic.node_interpreter(tmp_path / "not_built")
+
+
+def test_plan_in_the_nodes_interpreter_is_the_plan(tmp_path) -> None:
+    """plan_launch_with (a child process, JSON) gives exactly plan_launch's plan, and relays
+    its refusals as LaunchError with the same message."""
+    args = {"duration_s": "5.0", "rate_factor": "5.0", "cwd": tmp_path}
+    here = launch_logic.plan_launch(str(SCENARIOS / "car.yaml"), "o", **args)
+    child = launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "o",
+                                          **args)  # fmt: skip
+    assert child == here
+    (tmp_path / "o").mkdir()
+    with pytest.raises(launch_logic.LaunchError, match=r"out:=o: .* exists already"):
+        launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "o", **args)
+    with pytest.raises(launch_logic.LaunchError, match="force:=maybe: must be true or false"):
+        launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "",
+                                      force="maybe", cwd=tmp_path)  # fmt: skip
+
+
+def test_planner_with_noble_pydantic_names_the_fix(tmp_path, monkeypatch) -> None:
+    """A node interpreter that sees noble's pydantic 1.10 first (a dist-info of that version
+    ahead on its path): the launch stops with the pip command, before any node starts."""
+    old = tmp_path / "site" / "pydantic-1.10.14.dist-info"
+    old.mkdir(parents=True)
+    (old / "METADATA").write_text("Metadata-Version: 2.1\nName: pydantic\nVersion: 1.10.14\n")
+    path = os.pathsep.join(p for p in (str(tmp_path / "site"), os.environ.get("PYTHONPATH")) if p)
+    monkeypatch.setenv("PYTHONPATH", path)
+    with pytest.raises(launch_logic.LaunchError) as err:
+        launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "",
+                                      cwd=tmp_path)  # fmt: skip
+    text = str(err.value)
+    assert "pydantic >= 2.1.1 is required (1.10.14 is installed)" in text
+    assert "pip install 'pydantic>=2.1.1'" in text and "requirements/ros-overlay.txt" in text
 
 
 # --- the launch file's wiring, on a minimal stand-in of the launch API --------------------------
 
+#: A stand-in of the parts of launch / launch_ros that pipeline.launch.py uses (exec'd here and in
+#: child processes): actions record their arguments; a context is a dict of the launch arguments
+#: and "_prefix" (what FindPackagePrefix finds).
+FAKE_LAUNCH = """
+import sys, types
 
 class _Action:
     def __init__(self, *args, **kwargs):
         self.args, self.kwargs = args, kwargs
 
+class LaunchConfiguration:
+    def __init__(self, name):
+        self.name = name
+
+    def perform(self, context):
+        return context[self.name]
+
+class FindPackagePrefix:
+    def __init__(self, package):
+        assert package == "strapdown_ros"
+
+    def perform(self, context):
+        return context["_prefix"]
+
+mods = {n: types.ModuleType(n) for n in (
+    "launch", "launch.actions", "launch.event_handlers", "launch.substitutions",
+    "launch_ros", "launch_ros.actions", "launch_ros.substitutions")}
+for name in ("RegisterEventHandler", "LogInfo"):
+    setattr(mods["launch.actions"], name, type(name, (_Action,), {}))
+mods["launch.event_handlers"].OnProcessExit = type("OnProcessExit", (_Action,), {})
+mods["launch.substitutions"].LaunchConfiguration = LaunchConfiguration
+mods["launch_ros.actions"].Node = type("Node", (_Action,), {})
+mods["launch_ros.substitutions"].FindPackagePrefix = FindPackagePrefix
+"""
+
 
 def _fake_launch_modules() -> dict[str, types.ModuleType]:
-    mods = {n: types.ModuleType(n) for n in (
-        "launch", "launch.actions", "launch.event_handlers", "launch.substitutions",
-        "launch_ros", "launch_ros.actions")}  # fmt: skip
+    namespace: dict = {}
+    exec(FAKE_LAUNCH, namespace)  # the test's own stand-in
+    return namespace["mods"]
 
-    class LaunchConfiguration:
-        def __init__(self, name):
-            self.name = name
 
-        def perform(self, context):
-            return context[self.name]
+def _load_launch_file(name: str):
+    spec = importlib.util.spec_from_file_location(name, LAUNCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return module
 
-    for name in ("RegisterEventHandler", "LogInfo"):
-        setattr(mods["launch.actions"], name, type(name, (_Action,), {}))
-    mods["launch.event_handlers"].OnProcessExit = type("OnProcessExit", (_Action,), {})
-    mods["launch.substitutions"].LaunchConfiguration = LaunchConfiguration
-    mods["launch_ros.actions"].Node = type("Node", (_Action,), {})
-    return mods
+
+class _Params:
+    def perform(self, _context):
+        return "/share/strapdown_ros/config/params.yaml"
+
+
+def _context(tmp_path: Path, scenario: str = "car.yaml") -> dict[str, str]:
+    """The launch arguments, and a package prefix whose node executables run this Python."""
+    prefix = tmp_path / "prefix"
+    _script(prefix, f"#!{sys.executable}\n")
+    return {"scenario": str(SCENARIOS / scenario), "out": str(tmp_path / "o"), "force": "false",
+            "duration_s": str(DURATION), "rate_factor": "1.0", "_prefix": str(prefix)}  # fmt: skip
 
 
 def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
     for name, module in _fake_launch_modules().items():
         monkeypatch.setitem(sys.modules, name, module)
-    spec = importlib.util.spec_from_file_location("pipeline_launch_fake", LAUNCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
-    context = {"scenario": str(SCENARIOS / "car.yaml"), "out": str(tmp_path / "o"),
-               "force": "false", "duration_s": str(DURATION), "rate_factor": "1.0"}  # fmt: skip
-
-    class Params:
-        def perform(self, _context):
-            return "/share/strapdown_ros/config/params.yaml"
-
-    actions = module._nodes(context, Params())
+    module = _load_launch_file("pipeline_launch_fake")
+    actions = module._nodes(_context(tmp_path), _Params())
     nodes = [a for a in actions if type(a).__name__ == "Node"]
     handlers = [a for a in actions if type(a).__name__ == "RegisterEventHandler"]
     assert {n.kwargs["executable"] for n in nodes} == {"bag_recorder", "trajectory_node",
@@ -257,10 +347,52 @@ def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
         params = node.kwargs["parameters"]
         assert params[0].endswith("params.yaml") and isinstance(params[1], dict)
         callback = on_exit.kwargs["on_exit"]
-        assert callback(types.SimpleNamespace(returncode=0), None) == []
+        running, stopping = (types.SimpleNamespace(is_shutdown=v) for v in (False, True))
+        assert callback(types.SimpleNamespace(returncode=0), running) == []
         with pytest.raises(launch_logic.NodeFailedError, match=(
                 f"{node.kwargs['executable']} exited with status 2")):  # fmt: skip
-            callback(types.SimpleNamespace(returncode=2), None)
+            callback(types.SimpleNamespace(returncode=2), running)
+        # the nodes that shutdown stops (SIGINT) exit after it: nothing more is raised
+        assert callback(types.SimpleNamespace(returncode=-2), stopping) == []
+
+
+def test_launch_file_needs_no_library_in_the_launch_process(tmp_path) -> None:
+    """The launch file run by a Python that can import none of the package's libraries (as
+    /usr/bin/python3 running ros2 launch on noble lacks pydantic 2 and numba): the nodes and
+    their parameters still come out, planned by the nodes' interpreter, equal to plan_launch's."""
+    context = _context(tmp_path, "default.yaml")
+    code = FAKE_LAUNCH + f"""
+import importlib.abc, importlib.util, json
+BLOCKED = {{"numpy", "scipy", "pydantic", "yaml", "numba", "rosbags", "mcap", "matplotlib",
+           "rclpy"}}
+
+class Block(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in BLOCKED:
+            raise ImportError(f"{{name}} is blocked in this process")
+
+sys.meta_path.insert(0, Block())
+sys.modules.update(mods)
+spec = importlib.util.spec_from_file_location("pipeline_launch_blocked", {str(LAUNCH)!r})
+module = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(module)
+
+class Params:
+    def perform(self, context):
+        return "params.yaml"
+
+actions = module._nodes({context!r}, Params())
+nodes = [a for a in actions if type(a).__name__ == "Node"]
+print(json.dumps([[n.kwargs["executable"], n.kwargs["parameters"][1]] for n in nodes]))
+print(sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED))
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, cwd=tmp_path)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    got, loaded = proc.stdout.splitlines()
+    want = launch_logic.plan_launch(context["scenario"], context["out"], duration_s=DURATION)
+    assert json.loads(got) == [[n.name, n.parameters] for n in want.nodes]
+    assert loaded == "[]"
 
 
 def test_scenarios_all_plan(tmp_path) -> None:
