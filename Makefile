@@ -95,15 +95,28 @@ ROS_PINS      = grep -E '^(ros-|pip==|setuptools==)' requirements/constraints.tx
 BINARY_ONLY  := numpy,scipy,numba,llvmlite,matplotlib,contourpy,kiwisolver,pillow,pydantic-core,pyarrow
 FAST_PYTEST   = -m "$(FAST_MARKERS)" -p no:cacheprovider -q $(PYTEST_ARGS)
 
+# noble's matplotlib 3.6.3 (the minimum) has no cp312 wheel on PyPI: built once into
+# .noble-wheels against the system FreeType and Qhull (apt-get install libfreetype-dev
+# libqhull-dev pkg-config); test-minimum and test-overlay install it from there.
+NOBLE_WHEELS  := $(CURDIR)/.noble-wheels
+MPL_WHEEL     := $(NOBLE_WHEELS)/.matplotlib-3.6.3.stamp
+$(MPL_WHEEL):
+	mkdir -p $(NOBLE_WHEELS)
+	printf '[libs]\nsystem_freetype = true\nsystem_qhull = true\n' > $(NOBLE_WHEELS)/mplsetup.cfg
+	MPLSETUPCFG=$(NOBLE_WHEELS)/mplsetup.cfg $(MIN_PYTHON) -m pip wheel $(PIP_QUIET) --no-deps \
+	    -w $(NOBLE_WHEELS) matplotlib==3.6.3
+	@touch $@
+
 # The oldest supported version of every runtime library (requirements/minimum.txt, the table of
 # strapdown_ros/requirements_check.py), the ROS wheels of constraints.txt, the test tools at
 # their newest; then the fast tests. A fresh .venv-min each time.
 MIN_VENV := $(CURDIR)/.venv-min
-test-minimum:
+test-minimum: $(MPL_WHEEL)
 	rm -rf $(MIN_VENV) && $(MIN_PYTHON) -m venv $(MIN_VENV)
 	$(ROS_PINS) > $(MIN_VENV)/ros-pins.txt
 	$(MIN_VENV)/bin/python -m pip install $(PIP_QUIET) --upgrade pip -c $(MIN_VENV)/ros-pins.txt
 	$(MIN_VENV)/bin/python -m pip install $(PIP_QUIET) --only-binary=$(BINARY_ONLY) \
+	    --find-links $(NOBLE_WHEELS) \
 	    -r requirements/dev.txt -c requirements/minimum.txt -c $(MIN_VENV)/ros-pins.txt
 	$(MIN_VENV)/bin/python -m pip install $(PIP_QUIET) --no-deps --no-build-isolation -e .
 	$(MIN_VENV)/bin/python tools/install_ament_prefix.py --symlink
@@ -117,20 +130,13 @@ test-minimum:
 # noble_apt.yaml) and the ROS wheels; .venv-overlay sees it as system site-packages (a .pth
 # line, since --system-site-packages reaches only the base interpreter) and gets the one pip
 # command (requirements/ros-overlay.txt); then the fast tests, with the test tools pip adds.
-# noble's matplotlib 3.6.3 has no cp312 wheel on PyPI: it is built once against the system
-# FreeType and Qhull (apt-get install libfreetype-dev libqhull-dev pkg-config).
 NOBLE_VENV    := $(CURDIR)/.venv-noble
 OVERLAY_VENV  := $(CURDIR)/.venv-overlay
-NOBLE_WHEELS  := $(CURDIR)/.noble-wheels
 NOBLE_PYTHON_LIBS := numpy==1.26.4 scipy==1.11.4 PyYAML==6.0.1 matplotlib==3.6.3 \
 	pydantic==1.10.14 pytest==7.4.4 pytest-timeout==2.2.0 setuptools==68.1.2 wheel==0.42.0
-test-overlay:
+test-overlay: $(MPL_WHEEL)
 	rm -rf $(NOBLE_VENV) $(OVERLAY_VENV) && $(MIN_PYTHON) -m venv $(NOBLE_VENV)
-	mkdir -p $(NOBLE_WHEELS) && $(ROS_PINS) > $(NOBLE_VENV)/ros-pins.txt
-	ls $(NOBLE_WHEELS)/matplotlib-3.6.3-*.whl >/dev/null 2>&1 || \
-	    { printf '[libs]\nsystem_freetype = true\nsystem_qhull = true\n' > $(NOBLE_WHEELS)/mplsetup.cfg; \
-	      MPLSETUPCFG=$(NOBLE_WHEELS)/mplsetup.cfg $(NOBLE_VENV)/bin/python -m pip wheel \
-	        $(PIP_QUIET) --no-deps -w $(NOBLE_WHEELS) matplotlib==3.6.3; }
+	$(ROS_PINS) > $(NOBLE_VENV)/ros-pins.txt
 	$(NOBLE_VENV)/bin/python -m pip install $(PIP_QUIET) --find-links $(NOBLE_WHEELS) \
 	    $(NOBLE_PYTHON_LIBS) -c $(NOBLE_VENV)/ros-pins.txt \
 	    ros-jazzy-rclpy ros-jazzy-common-interfaces ros-jazzy-rmw-fastrtps-cpp

@@ -138,3 +138,19 @@ def test_cli_reports_a_missing_campaign_library(tmp_path) -> None:
     assert "strapdown-sim campaign: Monte Carlo campaigns" in proc.stderr
     assert "pip install 'dask>=2023.9.0'" in proc.stderr
     assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+
+
+def test_minimums_of_apt_libraries_are_nobles_or_older() -> None:
+    """The libraries package.xml takes from apt (rosdep) are not upgraded by the pip step, so
+    their minimums must admit noble's versions (test/data/rosdep/noble_apt.yaml), or every node
+    of a system install would stop at its version check."""
+    import yaml
+
+    noble = yaml.safe_load((REPO / "test" / "data" / "rosdep" / "noble_apt.yaml").read_text())
+    apt = {"numpy": "python3-numpy", "scipy": "python3-scipy", "PyYAML": "python3-yaml",
+           "matplotlib": "python3-matplotlib"}  # fmt: skip
+    overlay = _pins(REPO / "requirements" / "ros-overlay.txt", ">=")
+    for dist, package in apt.items():
+        version = noble[package].split(":")[-1].split("-")[0]  # 1:1.26.4+ds-6ubuntu1 → 1.26.4+ds
+        assert rc._version_tuple(version) >= rc._version_tuple(rc.MINIMUM[dist]), (dist, version)
+        assert dist not in overlay or dist == "numpy", dist  # numpy: kept below 2 only
