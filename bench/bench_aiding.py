@@ -3,8 +3,8 @@
 Scenario: the default flight (200 Hz). Timed:
 
 * ``reference``: the reference stream's pieces and their serialized batches
-  (:func:`strapdown_ros.stages.reference.reference_batch_chunks`, what ``generate`` computes);
-* ``aiding``: :class:`strapdown_ros.stages.aiding.AidingStream` fed the reference's Odometry
+  (:func:`strapdown_ros.stages.trajectory.reference_batch_chunks`, what ``generate`` computes);
+* ``aiding``: :class:`strapdown_ros.stages.aiding.AidingStage` fed the reference's Odometry
   payloads piece by piece (decode, truth at the epochs, models, serialize): GNSS ``spp`` at
   10 Hz with latency and an outage, barometer ``mems`` 25 Hz, magnetometer ``mems`` 50 Hz,
   wheel odometer ``abs_sensor`` 50 Hz;
@@ -23,8 +23,8 @@ from pathlib import Path
 from strapdown_ros.config import load_scenario
 from strapdown_ros.config.aiding import AidingSpec
 from strapdown_ros.config.base import validate_section
-from strapdown_ros.stages.aiding import AidingStream
-from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
+from strapdown_ros.stages.aiding import AidingStage
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 SPEC = {
@@ -47,10 +47,10 @@ def main() -> None:
     best_ref = best_aid = float("inf")
     for _ in range(args.repeats):
         t0 = time.perf_counter()
-        pieces = [b for _, b in reference_batch_chunks(scenario, build_trajectory(scenario))]
+        pieces = [b for _, b in reference_batch_chunks(scenario)]
         best_ref = min(best_ref, time.perf_counter() - t0)
         t0 = time.perf_counter()
-        stream = AidingStream(scenario, spec)  # type: ignore[arg-type]
+        stream = AidingStage(scenario, spec)  # type: ignore[arg-type]
         for batches in pieces:
             stream.feed_batches(batches)
         best_aid = min(best_aid, time.perf_counter() - t0)
@@ -59,7 +59,7 @@ def main() -> None:
     messages = sum(stream.published.values())
     head = payloads[: args.messages]
     t0 = time.perf_counter()
-    single = AidingStream(scenario, spec)  # type: ignore[arg-type]
+    single = AidingStage(scenario, spec)  # type: ignore[arg-type]
     for p in head:
         single.on_payloads([p])
     per_msg = (time.perf_counter() - t0) / len(head)

@@ -25,14 +25,14 @@ from pathlib import Path
 
 from strapdown_ros.campaign.compute import run_one, shared_inputs
 from strapdown_ros.campaign.engine import dask_client, run_tasks
-from strapdown_ros.campaign.plan import CampaignPlan
+from strapdown_ros.campaign.runs import Campaign
 from strapdown_ros.config import load_scenario
 from strapdown_ros.generate import generate_dataset
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 
 
-def _campaign_time(plan: CampaignPlan, shared, runs: int, workers: int, repeats: int) -> float:
+def _campaign_time(plan: Campaign, shared, runs: int, workers: int, repeats: int) -> float:
     best = float("inf")
     with dask_client(None, workers) as client:
         # warm-up: one run per worker (numba compilation, imports) outside the clock
@@ -55,7 +55,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     args = parser.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start")
-    plan = CampaignPlan(Path(args.scenario), duration_s=args.duration)
+    plan = Campaign(Path(args.scenario), duration_s=args.duration)
     t = time.perf_counter()
     shared = shared_inputs(plan)
     t_shared = time.perf_counter() - t

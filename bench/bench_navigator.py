@@ -31,7 +31,7 @@ import numpy as np
 
 from strapdown_ros.config import load_scenario
 from strapdown_ros.core.navigation import _kernels, navigate_multirate, state_from_stream
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 SCENARIO = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 N, P = 10, 2

@@ -137,7 +137,7 @@ def fresh_process_child(order: str, truth_file: str, every: int, n: int, p: int)
     from strapdown_ros.config import parse_scenario
     from strapdown_ros.core.navigation import NavState, navigate_multirate, truth_navigation
     from strapdown_ros.core.trajectory.samples import SamplesTrajectory, samples_from_arrays
-    from strapdown_ros.stages.reference import generate_reference
+    from strapdown_ros.stages.trajectory import generate_reference
 
     with open(truth_file, "rb") as fh:
         duration_s, ref = pickle.load(fh)
@@ -250,7 +250,8 @@ def main(argv: list[str] | None = None) -> float:
     )
     from strapdown_ros.core.trajectory.samples import SamplesTrajectory, samples_from_arrays
     from strapdown_ros.core.young import young_error_angles
-    from strapdown_ros.stages.reference import generate_reference
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.stages.trajectory import generate_reference
 
     d2r, r2d = np.pi / 180.0, 180.0 / np.pi
     n_nav, p_nav, reps = args.n, args.p, max(1, args.repeats)
@@ -287,7 +288,7 @@ def main(argv: list[str] | None = None) -> float:
             roll=a[:, 6] * d2r, pitch=a[:, 7] * d2r, heading=a[:, 8] * d2r,
         )  # fmt: skip
         traj = SamplesTrajectory(samples, scenario.trajectory.fit_options())
-        return traj, generate_reference(scenario, traj)
+        return traj, generate_reference(resolve_plan(scenario, traj))
 
     coarse_on = args.coarse > 1 and args.coarse != args.every
     gen = {"pyins": pyins_generate, "ours": lambda: ours_generate(args.every)}

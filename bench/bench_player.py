@@ -69,7 +69,7 @@ def subscribe(out: str, counts: dict[str, int], timeout_s: float, rt: int) -> in
     from rclpy.experimental import EventsExecutor
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    from strapdown_ros.nodes._common import message_class
+    from strapdown_ros.nodes.message_types import message_class
 
     rclpy.init()
     node = rclpy.create_node("bench_player_subscriber")

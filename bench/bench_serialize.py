@@ -145,7 +145,7 @@ def main() -> None:
         f"messages: {n_msgs} ({args.cycles} Imu + {args.cycles + 1} Odometry + "
         f"{args.cycles + 1} NavSatFix)"
     )
-    print(f"stream -> message fields (messages.py): {t_fields:.3f} s (three separate calls)")
+    print(f"stream -> message fields (messages/): {t_fields:.3f} s (three separate calls)")
     t_shared, shared = best_of(lambda: msg.stream_fields(stream), args.repeats)
     trio = (shared.imu, shared.odometry, shared.navsatfix)
     assert all(a.equals(b) for a, b in zip(trio, fields, strict=True))

@@ -23,7 +23,7 @@ import numpy as np
 from strapdown_ros.config import load_scenario
 from strapdown_ros.core.rotations import dcm_from_euler
 from strapdown_ros.core.variation import OffsetArrays, _window, generate_variation
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 

@@ -65,7 +65,7 @@ from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.core.rotations import dcm_from_quat
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import generate_variation
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 from strapdown_ros.stages.variation import scenario_offsets, variation_settings
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"

@@ -23,17 +23,22 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 
+def _add_repeatable(
+    parser: argparse.ArgumentParser, flag: str, metavar: str, text: str | None = None, **kw: Any
+) -> None:
+    """An option that may be given several times (help ``text``); its values collect in a list
+    (default [])."""
+    parser.add_argument(flag, action="append", default=[], metavar=metavar, help=text, **kw)
+
+
 def _add_scenario_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", help="scenario YAML file (interface.md §5, docs/scenarios.md)")
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario key, value parsed as YAML (repeatable), "
+    _add_repeatable(
+        parser, "--set", "KEY=VALUE",
+        "override a scenario key, value parsed as YAML (repeatable), "
         "e.g. --set variation.lever_arm_m=[1,0,0]",
-    )
+        dest="overrides",
+    )  # fmt: skip
     parser.add_argument(
         "--duration", type=float, default=None, metavar="S", help="override duration_s"
     )
@@ -106,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rpl.add_argument("--out", required=True, help="output bag directory (navigator topics)")
     rpl.add_argument("--scenario", default=None, help="scenario whose navigator section to use")
-    rpl.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    _add_repeatable(rpl, "--set", "KEY=VALUE", dest="overrides")
     rpl.add_argument("--rate-factor", type=float, default=1.0, help="speed over real time")
     rpl.add_argument("--force", action="store_true", help="overwrite an existing output")
     rpl.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID")
@@ -116,14 +121,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("bag", help="bag directory written by generate or run")
     rep.add_argument("--out", default=None, help="output directory (default: BAG/report)")
-    rep.add_argument(
-        "--compare",
-        action="append",
-        default=[],
-        metavar="OTHER_BAG",
-        help="another bag of the same reference whose variation is compared with this one "
+    _add_repeatable(
+        rep, "--compare", "OTHER_BAG",
+        "another bag of the same reference whose variation is compared with this one "
         "(e.g. Method 1 vs Method 2; repeatable)",
-    )
+    )  # fmt: skip
     rep.add_argument(
         "--no-exactness",
         action="store_true",
@@ -148,14 +150,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scenario_args(cmp_)
     cmp_.add_argument("--runs", type=int, required=True, metavar="N", help="number of runs")
     cmp_.add_argument("--out", required=True, help="campaign directory (reused to resume)")
-    cmp_.add_argument(
-        "--vary",
-        action="append",
-        default=[],
-        metavar="KEY=SPEC",
-        help="draw a scenario value per run: KEY=normal(MEAN,SIGMA) or KEY=uniform(LOW,HIGH) "
+    _add_repeatable(
+        cmp_, "--vary", "KEY=SPEC",
+        "draw a scenario value per run: KEY=normal(MEAN,SIGMA) or KEY=uniform(LOW,HIGH) "
         "(lists for vector keys; repeatable; docs/campaigns.md)",
-    )
+    )  # fmt: skip
     cmp_.add_argument("--seed", type=int, default=0, help="campaign seed (default 0)")
     cmp_.add_argument("--bags", action="store_true", help="also write each run's full bag")
     cmp_.add_argument(
@@ -214,15 +213,15 @@ def _generate(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from strapdown_ros.config import load_scenario
-    from strapdown_ros.stages.reference import build_trajectory, natural_duration, output_cycles
+    from strapdown_ros.plan import resolve_plan
 
     scenario = load_scenario(args.scenario, args.overrides, args.duration)
-    trajectory = build_trajectory(scenario)
-    natural = natural_duration(scenario, trajectory)
-    duration = output_cycles(scenario, trajectory) * scenario.period_ns * 1e-9
+    plan = resolve_plan(scenario, topics=False)  # the topic plans cannot reject a scenario
+    plan.trajectory  # noqa: B018 - built: validates the trajectory's parameters
     print(
-        f"{scenario.path}: valid; {scenario.trajectory.kind} trajectory of {natural:g} s, "
-        f"{duration:g} s at {scenario.rate_hz:g} Hz (oversample {scenario.oversample}), "
+        f"{scenario.path}: valid; {scenario.trajectory.kind} trajectory of "
+        f"{plan.natural_duration_s:g} s, {plan.duration_s:g} s at {scenario.rate_hz:g} Hz "
+        f"(oversample {scenario.oversample}), "
         f"gravity {scenario.gravity_model}"
     )
     return 0
@@ -260,48 +259,43 @@ def _check(args: argparse.Namespace) -> int:
     return status
 
 
-def _live(command: str, call: Callable[[], Any]) -> Any:
-    """``call()`` of a live command (run, replay), or its exit status when it fails: 2 when the
-    output exists, 1 when a node process failed (its log is printed)."""
+def _live(command: str, call: Callable[[], Any]) -> int:
+    """Run a live command (run, replay): ``call()`` and print its result; the exit status is 0
+    when the result is ``ok``, 1 when not or when a node process failed (its log is printed), 2
+    when the output exists."""
     from strapdown_ros.pipeline import PipelineError
 
     try:
-        return call()
+        result = call()
     except FileExistsError as exc:
         print(f"strapdown-sim {command}: {exc}", file=sys.stderr)
         return 2
     except PipelineError as exc:
         print(f"strapdown-sim {command}: {exc}\n--- log ---\n{exc.log}", file=sys.stderr)
         return 1
+    print(result.format())
+    return 0 if result.ok else 1
 
 
 def _run(args: argparse.Namespace) -> int:
     from strapdown_ros.pipeline import run_pipeline
 
-    result = _live("run", lambda: run_pipeline(
+    return _live("run", lambda: run_pipeline(
         args.scenario, args.out, overrides=args.overrides, duration_s=args.duration,
         storage=args.storage, force=args.force,
         rate_factor=0.0 if args.unpaced else args.rate_factor,
         domain_id=args.domain_id, timeout_s=args.timeout,
         flow_control={"auto": None, "on": True, "off": False}[args.flow_control],
     ))  # fmt: skip
-    if isinstance(result, int):
-        return result
-    print(result.format())
-    return 0 if not result.lost else 1
 
 
 def _replay(args: argparse.Namespace) -> int:
     from strapdown_ros.pipeline import replay_into_navigator
 
-    result = _live("replay", lambda: replay_into_navigator(
+    return _live("replay", lambda: replay_into_navigator(
         args.bag, args.out, scenario_path=args.scenario, overrides=args.overrides,
         rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
     ))  # fmt: skip
-    if isinstance(result, int):
-        return result
-    print(result.format())
-    return 0 if not result.mismatches else 1
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -452,23 +446,13 @@ def _dispatch(args: argparse.Namespace) -> int:
     # handled by main() like any other (no traceback).
     from strapdown_ros.config import ScenarioError
 
+    commands = {
+        "generate": _generate, "validate": _validate, "run": _run, "replay": _replay,
+        "check": _check, "report": _report, "campaign": _campaign, "bag": _bag,
+    }  # fmt: skip
     try:
-        if args.command == "generate":
-            return _generate(args)
-        if args.command == "validate":
-            return _validate(args)
-        if args.command == "run":
-            return _run(args)
-        if args.command == "replay":
-            return _replay(args)
-        if args.command == "check":
-            return _check(args)
-        if args.command == "report":
-            return _report(args)
-        if args.command == "campaign":
-            return _campaign(args)
-        if args.command == "bag":
-            return _bag(args)
+        if args.command in commands:
+            return commands[args.command](args)
     except ScenarioError as exc:
         print(f"strapdown-sim {args.command}: invalid scenario: {exc}", file=sys.stderr)
         return 2

@@ -1,9 +1,8 @@
 """``strapdown-sim generate``: every stream of a scenario, offline, into one rosbag2 directory.
 
-This module only orchestrates: the mathematics is in :mod:`strapdown_ros.core` and
-:mod:`strapdown_ros.stages.reference`, the messages in :mod:`strapdown_ros.messages`, the bag I/O in
-:mod:`strapdown_ros.bag`. The trajectory node publishes the very batches built here
-(:func:`reference_batches`), which is why the bag and the live topics carry identical messages.
+This module only orchestrates: it feeds the pieces of the reference stream through the stages
+of the chain (:mod:`strapdown_ros.plan.chain`) and writes what they return; the nodes run the
+same stage objects, which is why the bag and the live topics carry identical messages.
 """
 
 from __future__ import annotations
@@ -18,23 +17,15 @@ import numpy as np
 from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.config import Scenario
-from strapdown_ros.config.navigator import navigator_spec
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
+from strapdown_ros.plan import Plan, resolve_plan
+from strapdown_ros.plan.chain import feed_stages, offline_stages
+from strapdown_ros.plan.metadata import bag_custom_data
 from strapdown_ros.producer import Piece, Producer
-from strapdown_ros.stages.aiding import (
-    aiding_custom_data,
-    aiding_spec,
-    generate_aiding_stream,
-)
-from strapdown_ros.stages.frames import STATIC_QOS, FramesStage, static_topic
-from strapdown_ros.stages.navigation import NavigationStage
-from strapdown_ros.stages.reference import (
-    build_trajectory,
-    output_cycles,
-    reference_batch_chunks,
-)
-from strapdown_ros.stages.variation import VariationStage
+from strapdown_ros.stages.tf import STATIC_QOS
+from strapdown_ros.stages.trajectory import reference_batch_chunks
+from strapdown_ros.topics import topic_lines
 
 __all__ = [
     "DatasetSummary",
@@ -43,8 +34,6 @@ __all__ = [
 ]
 
 Progress = Callable[[str, int, int], None]
-
-
 
 
 @dataclass
@@ -70,9 +59,7 @@ class DatasetSummary:
             f"({self.duration_s / max(self.elapsed_s, 1e-9):.0f}x real time)",
             "topics:",
         ]
-        width = max((len(t) for t in self.topics), default=0)
-        for topic, count in self.topics.items():
-            lines.append(f"  {topic:<{width}}  {count:>9d} messages")
+        lines += topic_lines({t: f"{count:>9d} messages" for t, count in self.topics.items()})
         for name, res in self.residuals.items():
             ok = "ok" if res.within_spec() else "DEFECT"
             lines.append(
@@ -88,50 +75,8 @@ class DatasetSummary:
         return "\n".join(lines)
 
 
-
-
-
-
-
-
-
-
-def bag_custom_data(scenario: Scenario) -> dict[str, str]:
-    """The bag metadata ``custom_data`` describing how a scenario's streams were made.
-
-    ``generator``, ``scenario`` (name), ``rate_hz``, the gravitation model and, for the sections
-    the scenario has, ``variation.method`` / ``variation.gravity``, ``navigator.algorithm`` /
-    ``navigator.mode`` and ``imu_errors.preset`` / ``imu_errors.seed``; ``strapdown-sim
-    report`` names the variation method from it. Written by ``generate`` and ``bag_recorder``.
-    """
-    data = {
-        "generator": "strapdown_ros",
-        "scenario": scenario.name,
-        "rate_hz": f"{scenario.rate_hz:g}",
-        "gravity_model": str(scenario.gravity_model),
-    }
-    if scenario.variation is not None:
-        spec = scenario.variation
-        data["variation.method"], data["variation.gravity"] = str(spec.method), spec.gravity
-    nav = navigator_spec(scenario)
-    if nav is not None:
-        data["navigator.algorithm"], data["navigator.mode"] = nav.algorithm, str(nav.mode)
-    if scenario.imu_errors is not None:
-        for key in ("preset", "seed"):  # the ones the file gives
-            if key in scenario.imu_errors.model_fields_set:
-                data[f"imu_errors.{key}"] = str(getattr(scenario.imu_errors, key))
-    data.update(aiding_custom_data(aiding_spec(scenario)))
-    return data
-
-
-
-
-
-
-
-
 def generate_dataset(
-    scenario: Scenario,
+    scenario: Scenario | Plan,
     out: str | Path,
     *,
     storage: str | None = None,
@@ -142,68 +87,50 @@ def generate_dataset(
 
     The scenario and its trajectory are fully validated before anything is computed or written;
     the bag is written atomically (nothing is left at ``out`` on error) and an existing ``out``
-    is only replaced with ``force``. The computation runs piece by piece in a producer thread
-    while the bag writer writes the previous piece.
+    is only replaced with ``force``. The stages of the chain (:mod:`strapdown_ros.plan.chain`)
+    run piece by piece in a forked producer while the bag writer writes the previous piece.
     """
     start = time.perf_counter()
+    plan = scenario if isinstance(scenario, Plan) else resolve_plan(scenario)
+    scenario = plan.scenario
     storage = storage or scenario.recording.storage
     out = Path(out)
     # Fail early on the destination (BagWriter checks again when it opens).
     if out.exists() and not force:
         raise FileExistsError(f"{out} exists already; not overwriting (use --force)")
-    trajectory = build_trajectory(scenario)  # validates the kind's parameters
-    total = output_cycles(scenario, trajectory)
+    plan.trajectory  # noqa: B018 - built (and validated) before anything is written
+    total = plan.cycles
     summary = DatasetSummary(
         path=out,
         storage=storage,
         rate_hz=scenario.rate_hz,
         cycles=total,
-        duration_s=total * scenario.period_ns * 1e-9,
+        duration_s=plan.duration_s,
     )
 
-    # --- issue 7: /variation/imu_measured (the imu_errors model on its ideal input topic) ---
-    from strapdown_ros.stages.measurement import generate_measured_stream
-
-    measured = generate_measured_stream(scenario)
-
-    # --- issue 16: aiding sensors from /reference/odom (docs/aiding.md) ---
-    aiding = generate_aiding_stream(scenario)
-
     def pieces() -> Iterator[Piece]:
-        streamer = None if scenario.variation is None else VariationStage.offline(scenario, total)
-        navigator = None
-        if scenario.navigator is not None:
-            navigator = NavigationStage.for_scenario(scenario, period_ns=scenario.period_ns)
-        # TF, map-frame odometry and increments of every stage's output (docs/interface.md)
-        offsets = None if streamer is None else streamer.offsets
-        frames = FramesStage(scenario, offsets=offsets, cycles=total)
-        static = frames.static_batch()
-        for piece, batches in reference_batch_chunks(scenario, trajectory):
+        stages = offline_stages(plan)
+        navigator = dict(stages).get("navigator")
+        leading = [b for _, s in stages for b in getattr(s, "leading_batches", list)()]
+        for piece, batches in reference_batch_chunks(plan):
             res = {"reference": stream_residuals(piece)}
-            if streamer is not None:
-                batches = batches + streamer.feed_batches(batches, res)
-            if measured is not None:  # issue 7: before the navigator, which may consume it
-                batches = batches + measured.feed_batches(batches)
-            nav_errors: dict[str, float] = {}
-            if navigator is not None:
-                batches = batches + navigator.feed_batches(batches)
-                nav_errors = navigator.final_errors
-            if aiding is not None:  # issue 16: from /reference/odom, after every other stream
-                batches = batches + aiding.feed_batches(batches)
-            batches = batches + frames.feed_batches(batches)
-            if static is not None:  # /tf_static once, at t0, first
-                batches, static = [static, *batches], None
+            batches = feed_stages(stages, batches)
+            for _, stage in stages:
+                res.update(getattr(stage, "take_residuals", dict)())
+            nav_errors = navigator.final_errors if navigator is not None else {}
+            if leading:  # e.g. /tf_static once, at t0, first
+                batches, leading = [*leading, *batches], []
             yield Piece(piece.cycles, res, batches, nav_errors)
 
     producer = Producer(pieces())
     done = 0
     parts: dict[str, list[Residuals]] = {}
+    latched = [p.topic for p in plan.topics.values() if p.key == "tf_static"]
     try:
-        custom_data = bag_custom_data(scenario)
+        custom_data = bag_custom_data(plan)
         with BagWriter(out, storage=storage, force=force, custom_data=custom_data) as writer:
-            tf_static = static_topic(scenario)
-            if tf_static is not None:  # offered as a latched publisher's (ros2 bag play keeps it)
-                writer.add_topic(tf_static, TF_MESSAGE, qos=STATIC_QOS)
+            for topic in latched:  # offered as a latched publisher's (ros2 bag play keeps it)
+                writer.add_topic(topic, TF_MESSAGE, qos=STATIC_QOS)
             for cycles, res, batches, nav_errors in producer:  # type: ignore[misc]
                 writer.write_batches(batches)
                 summary.navigation = nav_errors

@@ -1,14 +1,13 @@
 """The producer of ``generate``: computes the next pieces while the caller writes the previous.
 
-On Linux the producer is a forked process (true parallelism on the second core; the already-built
-trajectory is inherited). A piece's batches hold ~260 000 small ``bytes`` payloads; sending them
-through the queue's pipe (pickled, 64 KiB at a time, the two processes taking turns) cost the
-writing process 0.2–0.5 s per piece, a third of the time it spent writing. So the worker spools
-each piece's payloads into one file in a private directory on ``/dev/shm`` (a RAM file system;
-the system temporary directory where there is none) and sends only the stamps and the layout;
-the writing process reads the file back in one call and splits it into the very same ``bytes``
-objects (docs/benchmarks.md). Elsewhere (no ``fork``) the producer is a thread and nothing is
-copied. Pure standard library and numpy; no ROS.
+On Linux the producer is a forked process (parallelism on the second core; the already-built
+trajectory is inherited). A piece's batches hold hundreds of thousands of small ``bytes``
+payloads, too many to pickle through the queue's pipe cheaply, so the worker spools each
+piece's payloads into one file in a private directory on ``/dev/shm`` (a RAM file system; the
+system temporary directory where there is none) and sends only the stamps and the layout; the
+writing process reads the file back in one call and splits it into the very same ``bytes``
+objects. Elsewhere (no ``fork``) the producer is a thread and nothing is copied. Pure standard
+library and numpy; no ROS. Measurements: docs/benchmarks.md.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Helpers shared by the node tests: child processes, executables, payload comparison."""
+"""Helpers shared by the node tests: executables and their command lines, child processes,
+``strapdown-sim generate`` / ``run``, the helper scripts of ``ros_helpers/``, payload comparison."""
 
 from __future__ import annotations
 
@@ -14,6 +15,11 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+HELPERS = REPO / "test" / "ros_helpers"
+#: ros_helpers/raw_recorder.py: records raw payloads of topics (see its docstring).
+RAW_RECORDER = HELPERS / "raw_recorder.py"
+#: ros_helpers/reference_replay.py: replays a bag's Imu/Odometry pair with faults.
+REFERENCE_REPLAY = HELPERS / "reference_replay.py"
 
 
 def executable(name: str) -> str:
@@ -22,6 +28,87 @@ def executable(name: str) -> str:
     if not found:
         pytest.skip(f"{name} is not installed (make setup)")
     return found
+
+
+def node_args(name: str, *params: str) -> list[str]:
+    """The command line of node ``name`` (its console script) with ``-p`` parameters."""
+    args = [executable(name), "--ros-args"]
+    for p in params:
+        args += ["-p", p]
+    return args
+
+
+def node_exit(name: str, env: dict[str, str], *params: str, timeout: float = 60) -> tuple[int, str]:
+    """Run node ``name`` with ``-p`` parameters to its end: ``(exit status, its output)``; the
+    output must hold no traceback."""
+    proc = subprocess.run(node_args(name, *params), env=env, capture_output=True, text=True,
+                          timeout=timeout, cwd=REPO)  # fmt: skip
+    output = proc.stdout + proc.stderr
+    assert "Traceback" not in output, output
+    return proc.returncode, output
+
+
+def list_param(name: str, items) -> str:
+    """A string-array node parameter, ``name:=['a','b']``."""
+    return f"{name}:=[" + ",".join(f"'{i}'" for i in items) + "]"
+
+
+def sim(
+    *args: object, env: dict[str, str] | None = None, timeout: float = 180
+) -> subprocess.CompletedProcess:
+    """``strapdown-sim ARGS`` (the venv's), output captured, from the repository root."""
+    cmd = [executable("strapdown-sim"), *map(str, args)]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=REPO)
+
+
+def generate(scenario: Path, out: Path, *args: object, timeout: float = 180) -> None:
+    """``strapdown-sim generate SCENARIO --out OUT --quiet ARGS``; it must succeed."""
+    proc = sim("generate", scenario, "--out", out, "--quiet", *args, timeout=timeout)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def generated(scenario: Path, out: Path, duration_s: float, overrides=(), timeout: float = 180):
+    """The bag of ``strapdown-sim generate`` for ``duration_s`` with ``--set`` ``overrides``,
+    read back raw (:class:`~strapdown_ros.bag.reader.BagContents`)."""
+    from strapdown_ros.bag.reader import read_bag
+
+    args: list[object] = ["--duration", duration_s]
+    for o in overrides:
+        args += ["--set", o]
+    generate(scenario, out, *args, timeout=timeout)
+    return read_bag(out, raw=True)
+
+
+def run_live(
+    scenario: Path, out: Path, env: dict[str, str], *args: str, timeout: float = 300
+) -> subprocess.CompletedProcess:
+    """``strapdown-sim run SCENARIO --out OUT ARGS`` in the session's ROS domain; it must
+    succeed with zero loss."""
+    proc = sim("run", scenario, "--out", out, *args, "--domain-id", env["ROS_DOMAIN_ID"],
+               env=env, timeout=timeout)  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "zero loss" in proc.stdout, proc.stdout
+    return proc
+
+
+def assert_recorded_as_generated(live: Path, gen: Path) -> None:
+    """The bag ``live`` has every topic of ``gen`` with the same payloads in the same order;
+    ``/tf``, which three nodes publish, in any interleaving (the same log times)."""
+    from strapdown_ros.bag.reader import read_bag
+
+    a, b = read_bag(live, raw=True), read_bag(gen, raw=True)
+    assert set(a.topics) == set(b.topics)
+    assert "/tf" in b.topics and "/tf_static" in b.topics  # TF recorded live too
+    for topic, data in b.topics.items():
+        got = [bytes(p) for p in a.topics[topic].payloads]
+        want = [bytes(p) for p in data.payloads]
+        assert len(got) == len(want), topic
+        if topic == "/tf":
+            got, want = sorted(got), sorted(want)
+            np.testing.assert_array_equal(
+                np.sort(a.topics[topic].log_time_ns), np.sort(data.log_time_ns)
+            )
+        assert got == want, topic
 
 
 class Proc:
@@ -62,6 +149,62 @@ class Proc:
 
     def describe(self) -> str:
         return f"--- {self.name} (pid {self.proc.pid}, rc {self.proc.poll()})\n{self.output}"
+
+
+def launch(procs: list, args: list[str], env: dict[str, str], log_dir: Path, name: str) -> Proc:
+    """A :class:`Proc` of ``args``, added to ``procs`` (the fixture that kills what is left)."""
+    proc = Proc(args, env, log_dir, name)
+    procs.append(proc)
+    return proc
+
+
+def wait_ok(deadline: float, *procs: Proc) -> None:
+    """Each process exits 0 by ``deadline``, in order; a failure shows every one's output."""
+    for p in procs:
+        rc = p.wait(deadline)
+        assert rc == 0, "".join(q.describe() for q in (p, *(q for q in procs if q is not p)))
+
+
+def assert_clean(*procs: Proc, warnings: bool = True) -> None:
+    """No traceback in the processes' output (nor a warning unless ``warnings``)."""
+    for p in procs:
+        assert "Traceback" not in p.output, p.describe()
+        assert warnings or "WARN" not in p.output, p.describe()
+
+
+def load_recording(path: Path) -> dict:
+    """What ``ros_helpers/raw_recorder.py`` pickled: ``{"topics": ..., "arrival": ...}``."""
+    import pickle
+
+    with open(path, "rb") as f:
+        return pickle.load(f)
+
+
+def stamp_regex(t0_ns: int, period_ns: int, m: int) -> str:
+    """The regex of the logged stamp ``sec.nanosec`` of cycle ``m`` (``t0 + m T``)."""
+    t = t0_ns + m * period_ns
+    return re.escape(f"{t // 1_000_000_000}.{t % 1_000_000_000:09d}")
+
+
+def raw_recorder(
+    procs: list, env: dict[str, str], tmp_path: Path, topics, timeout_s: float,
+    name: str = "recorder",
+) -> tuple[Proc, Path]:
+    """``ros_helpers/raw_recorder.py`` on ``topics`` (``(topic, msgtype, count)`` triples);
+    returns the process and the pickle it writes."""
+    out = tmp_path / "recording.pkl"
+    args = [sys.executable, str(RAW_RECORDER), "--out", str(out), "--timeout", str(timeout_s)]
+    for topic, msgtype, count in topics:
+        args += ["--topic", f"{topic}={msgtype}={count}"]
+    return launch(procs, args, env, tmp_path, name), out
+
+
+def reference_replay(
+    procs: list, env: dict[str, str], tmp_path: Path, bag: Path, *args: str
+) -> Proc:
+    """``ros_helpers/reference_replay.py --bag BAG ARGS``."""
+    cmd = [sys.executable, str(REFERENCE_REPLAY), "--bag", str(bag), *args]
+    return launch(procs, cmd, env, tmp_path, "replay")
 
 
 def padded(payload: bytes) -> bytes:

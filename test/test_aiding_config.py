@@ -3,8 +3,6 @@ cross-checks against the scenario's time grid."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 
@@ -82,29 +80,29 @@ def test_bad_values_name_the_key(doc, message):
     assert str(err.value).startswith(message), str(err.value)
 
 
-def _scenario(doc, rate_hz=200.0, start_time_s=1767225600.0, topics=None):
+def _check(doc, rate_hz=200.0, start_time_s=1767225600.0, topics=None):
     rec = Recording() if topics is None else Recording(topics=topics)
-    return SimpleNamespace(
-        aiding=_spec(doc),
+    check_aiding(
+        _spec(doc),
         period_ns=int(round(1e9 / rate_hz)),
         start_time_s=start_time_s,
         start_time_ns=int(round(start_time_s * 1e9)),
-        recording=rec,
+        topics=rec.topics,
     )
 
 
 def test_cross_checks():
-    check_aiding(_scenario({"gnss": {"rate_hz": 10}, "magnetometer": {}}))
+    _check({"gnss": {"rate_hz": 10}, "magnetometer": {}})
     with pytest.raises(ScenarioError, match=r"^aiding.barometer.rate_hz: the epoch period"):
-        check_aiding(_scenario({"barometer": {"rate_hz": 16}}, rate_hz=40))  # 62.5 ms vs T = 25 ms
+        _check({"barometer": {"rate_hz": 16}}, rate_hz=40)  # 62.5 ms vs T = 25 ms
     with pytest.raises(ScenarioError, match=r"^aiding.gnss.rate_hz: start_time_s"):
-        check_aiding(_scenario({"gnss": {}}, start_time_s=1767225600.0025))
+        _check({"gnss": {}}, start_time_s=1767225600.0025)
     with pytest.raises(ScenarioError, match=r"^aiding.gnss.rate_hz: GNSS epochs are whole"):
-        check_aiding(_scenario({"gnss": {"rate_hz": 0.4}}))  # 2.5 s
+        _check({"gnss": {"rate_hz": 0.4}})  # 2.5 s
     with pytest.raises(ScenarioError, match=r"^aiding.magnetometer.decimal_year: start_time_s"):
-        check_aiding(_scenario({"magnetometer": {}}, start_time_s=4.0e9))
-    check_aiding(_scenario({"magnetometer": {"decimal_year": 2020.0}}, start_time_s=4.0e9))
-    check_aiding(_scenario({"gnss": {"enabled": False, "rate_hz": 0.4}}))  # disabled: unchecked
+        _check({"magnetometer": {}}, start_time_s=4.0e9)
+    _check({"magnetometer": {"decimal_year": 2020.0}}, start_time_s=4.0e9)
+    _check({"gnss": {"enabled": False, "rate_hz": 0.4}})  # disabled: unchecked
 
 
 def test_decimal_year():

@@ -12,8 +12,8 @@ from strapdown_ros.config import load_scenario
 from strapdown_ros.config.aiding import AidingSpec
 from strapdown_ros.config.base import validate_section
 from strapdown_ros.report.aiding import aiding_errors, aiding_table, plot_aiding
-from strapdown_ros.stages.aiding import AidingStream, aiding_custom_data
-from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
+from strapdown_ros.stages.aiding import AidingStage
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 REPO = Path(__file__).resolve().parent.parent
 DOC = {
@@ -28,11 +28,11 @@ DOC = {
 def _bag(tmp_path: Path, doc: dict, custom: bool) -> Path:
     scenario = load_scenario(REPO / "config/scenarios/default.yaml", duration_s=30.0)
     spec = validate_section(AidingSpec, doc, "aiding")
-    stream = AidingStream(scenario, spec)  # type: ignore[arg-type]
+    stream = AidingStage(scenario, spec)  # type: ignore[arg-type]
     path = tmp_path / "bag"
-    data = aiding_custom_data(spec) if custom else {}  # type: ignore[arg-type]
+    data = {"aiding": spec.model_dump_json(exclude_none=True)} if custom else {}
     with BagWriter(path, custom_data=data) as writer:
-        for _, batches in reference_batch_chunks(scenario, build_trajectory(scenario)):
+        for _, batches in reference_batch_chunks(scenario):
             writer.write_batches(batches + stream.feed_batches(batches))
     return path
 

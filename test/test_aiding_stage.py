@@ -23,11 +23,11 @@ from strapdown_ros.config.aiding import AidingSpec
 from strapdown_ros.config.base import validate_section
 from strapdown_ros.stages.aiding import (
     NOT_MEASURED_VARIANCE,
-    AidingStream,
-    aiding_expected_counts,
+    AidingStage,
+    aiding_topic_plans,
     igrf_coefficients,
 )
-from strapdown_ros.stages.reference import build_trajectory, reference_batch_chunks
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 REPO = Path(__file__).resolve().parent.parent
 DURATION_S = 40.0
@@ -77,7 +77,7 @@ def scenario():
 @pytest.fixture(scope="module")
 def reference(scenario):
     """The reference pieces' batches (as generate makes them)."""
-    return [batches for _, batches in reference_batch_chunks(scenario, build_trajectory(scenario))]
+    return [batches for _, batches in reference_batch_chunks(scenario)]
 
 
 def _odom_payloads(scenario, reference) -> list[bytes]:
@@ -87,7 +87,7 @@ def _odom_payloads(scenario, reference) -> list[bytes]:
 
 def _run(scenario, spec, chunks) -> dict[str, tuple[list[bytes], np.ndarray]]:
     """Aiding payloads and log times per topic for odometry payload chunks."""
-    stream = AidingStream(scenario, spec)
+    stream = AidingStage(scenario, spec)
     out: dict[str, tuple[list[bytes], list[int]]] = {}
     for chunk in chunks:
         for b in stream.on_payloads(chunk):
@@ -101,7 +101,7 @@ def _run(scenario, spec, chunks) -> dict[str, tuple[list[bytes], np.ndarray]]:
 def ideal_bag(scenario, reference, tmp_path_factory):
     """A bag with the reference streams and the error-free aiding topics, read back."""
     path = tmp_path_factory.mktemp("aiding") / "bag"
-    stream = AidingStream(scenario, _spec(_ideal()))
+    stream = AidingStage(scenario, _spec(_ideal()))
     with BagWriter(path) as writer:
         for batches in reference:
             writer.write_batches(batches + stream.feed_batches(batches))
@@ -364,10 +364,15 @@ def test_covariances_are_the_models(scenario, reference):
 
 
 def test_expected_counts(ideal_bag, scenario):
-    """aiding_expected_counts (the live pipeline's expectation) = what the stage wrote."""
+    """aiding_topic_plans (the live pipeline's expectation) = what the stage wrote: counts,
+    first and last header stamps."""
     cycles = len(ideal_bag["/reference/odom"]) - 1
-    expected = aiding_expected_counts(scenario, cycles, _spec(_ideal()))
+    plans = aiding_topic_plans(scenario, _spec(_ideal()), cycles)
+    expected = {p.topic: p.count for p in plans}
     assert expected == {t: len(ideal_bag.topics[t]) for t in expected}
+    for p in plans:
+        stamps = ideal_bag.topics[p.topic].fields.stamps_ns
+        assert (p.first_ns, p.last_ns) == (int(stamps[0]), int(stamps[-1]))
     assert set(expected) == {"/gnss/fix", "/gnss/vel", "/baro/pressure", "/mag", "/wheel/twist"}
 
 
@@ -387,7 +392,7 @@ def test_nonfinite_and_out_of_order_truth_dropped(scenario, reference):
     position[bad, 0] = np.nan
     broken = cdr.serialize(dataclasses.replace(odom, position=position))
     warnings: list[str] = []
-    stream = AidingStream(scenario, spec, warn=warnings.append)
+    stream = AidingStage(scenario, spec, warn=warnings.append, error=warnings.append)
     out: dict[str, list[bytes]] = {}
     for chunk in (broken[:1000], broken[990:1000], broken[1000:]):  # NaN; then repeats
         for b in stream.on_payloads(chunk):

@@ -17,7 +17,6 @@ import re
 import signal
 import struct
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -26,16 +25,14 @@ import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, executable, padded  # noqa: E402
+import node_testing as nt  # noqa: E402
 
 from strapdown_ros.bag.incremental import IncrementalBagWriter  # noqa: E402
 from strapdown_ros.bag.playback import clock_payload  # noqa: E402
-from strapdown_ros.bag.reader import read_bag  # noqa: E402
 from strapdown_ros.bag.writer import BagWriter  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
 # the reference stream alone (no TF, no map-frame odometry: docs/interface.md)
 REFERENCE = [
     "variation=null", "navigator=null", "imu_errors=null", "aiding=null", "tf.enabled=false",
@@ -53,13 +50,7 @@ PACING = re.compile(r"pacing error over (\d+) messages: p50 (\S+) ms, p99 (\S+) 
 
 
 def _generate(out: Path, *overrides: str, duration_s: float = 2.0):
-    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
-    cmd += ["--duration", str(duration_s), "--quiet"]
-    for o in (*REFERENCE, *overrides):
-        cmd += ["--set", o]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    return read_bag(out, raw=True)
+    return nt.generated(SCENARIO, out, duration_s, [*REFERENCE, *overrides], timeout=120)
 
 
 @pytest.fixture(scope="module")
@@ -68,26 +59,13 @@ def bag(tmp_path_factory):
     return _generate(tmp_path_factory.mktemp("gen") / "bag")
 
 
-def _player_args(*params: str) -> list[str]:
-    args = [executable("bag_player"), "--ros-args"]
-    for p in params:
-        args += ["-p", p]
-    return args
-
-
 def _play(procs, ros_env, tmp_path, counts: dict[str, int], *params: str):
     """Run raw_recorder on ``counts`` and the player; return the recording and the player."""
     deadline = time.monotonic() + TIMEOUT_S
-    out = tmp_path / "recording.pkl"
-    rec_args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
-    for topic, n in counts.items():
-        rec_args += ["--topic", f"{topic}={TYPES[topic]}={n}"]
-    recorder = Proc(rec_args, ros_env, tmp_path, "raw_recorder")
-    procs.append(recorder)
-    player = Proc(
-        _player_args("wait_for_subscribers:=1", *params), ros_env, tmp_path, "bag_player"
-    )
-    procs.append(player)
+    topics = [(topic, TYPES[topic], n) for topic, n in counts.items()]
+    recorder, out = nt.raw_recorder(procs, ros_env, tmp_path, topics, TIMEOUT_S - 5, "raw_recorder")
+    player = nt.launch(procs, nt.node_args("bag_player", "wait_for_subscribers:=1", *params),
+                       ros_env, tmp_path, "bag_player")  # fmt: skip
     assert player.wait(deadline) == 0, player.describe() + recorder.describe()
     assert recorder.wait(deadline) == 0, recorder.describe() + player.describe()
     assert "Traceback" not in player.output, player.describe()
@@ -95,7 +73,7 @@ def _play(procs, ros_env, tmp_path, counts: dict[str, int], *params: str):
         return pickle.load(f), player
 
 
-def _pacing(player: Proc) -> tuple[int, float, float, float]:
+def _pacing(player: nt.Proc) -> tuple[int, float, float, float]:
     match = PACING.search(player.output)
     assert match, player.describe()
     n, p50, p99, worst = match.groups()
@@ -108,7 +86,7 @@ def test_plays_every_message_with_the_original_timing(bag, procs, ros_env, tmp_p
     for topic in ("/reference/imu", "/reference/odom", "/reference/fix"):
         got = recording["topics"][topic]
         want = bag.topics[topic].payloads
-        assert got == [padded(p) for p in want], topic
+        assert got == [nt.padded(p) for p in want], topic
     # /clock: the log time before the first message of each new log time
     stamps = np.unique(np.concatenate([d.log_time_ns for d in bag.topics.values()]))
     assert recording["topics"]["/clock"] == [clock_payload(t) for t in stamps.tolist()]
@@ -152,12 +130,11 @@ def test_bag_with_clock_plays_its_own(procs, ros_env, tmp_path):
 
 def test_loop_until_sigint(bag, procs, ros_env, tmp_path):
     deadline = time.monotonic() + TIMEOUT_S
-    player = Proc(
-        _player_args(f"bag:={bag.path}", "loop:=true", "rate_factor:=4.0",
-                     "topics:=['/reference/imu']", "publish_clock:=false"),  # fmt: skip
+    player = nt.launch(
+        procs, nt.node_args("bag_player", f"bag:={bag.path}", "loop:=true", "rate_factor:=4.0",
+                            "topics:=['/reference/imu']", "publish_clock:=false"),
         ros_env, tmp_path, "bag_player",
     )  # fmt: skip
-    procs.append(player)
     player.wait_for(r"loop True", deadline)
     time.sleep(2.0)  # a 2 s bag at 4x: a pass takes 0.5 s (after the reader's start-up)
     player.proc.send_signal(signal.SIGINT)
@@ -182,12 +159,7 @@ def test_realtime_priority(bag, ros_env):
 
 
 def _refused(ros_env, *params: str) -> tuple[int, str]:
-    proc = subprocess.run(
-        _player_args(*params), env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
-    )
-    output = proc.stdout + proc.stderr
-    assert "Traceback" not in output, output
-    return proc.returncode, output
+    return nt.node_exit("bag_player", ros_env, *params)
 
 
 def test_missing_bag_is_refused(ros_env, tmp_path):
@@ -237,7 +209,7 @@ def test_interrupted_recording_is_refused(bag, ros_env, tmp_path):
     assert rc == 2, out
     assert "has no metadata.yaml" in out and "strapdown-sim bag repair" in out, out
     subprocess.run(
-        [executable("strapdown-sim"), "bag", "repair", str(tmp_path / "rec")],
+        [nt.executable("strapdown-sim"), "bag", "repair", str(tmp_path / "rec")],
         check=True, capture_output=True, timeout=60,
     )  # fmt: skip
     rc, out = _refused(ros_env, f"bag:={tmp_path / 'rec'}", "rate_factor:=0.0")

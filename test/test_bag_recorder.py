@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import re
 import signal
-import subprocess
 import time
 from pathlib import Path
 
@@ -22,14 +21,14 @@ import yaml
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, executable, scenario_without_tf  # noqa: E402
+import node_testing as nt  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 
 from strapdown_ros.bag.reader import read_bag  # noqa: E402
 from strapdown_ros.bag.writer import DEFAULT_QOS  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
+SCENARIO = nt.scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 #: The reference stream with /clock: what trajectory_node publishes (time_source sim).
 OVERRIDES = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null"]
 TOPICS = ["/clock", "/reference/odom", "/reference/fix", "/reference/imu"]
@@ -37,13 +36,7 @@ TIMEOUT_S = 90.0
 
 
 def _generate(out: Path, duration_s: float, *extra: str) -> object:
-    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
-    cmd += ["--duration", str(duration_s), "--quiet"]
-    for o in (*OVERRIDES, *extra):
-        cmd += ["--set", o]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=180, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    return read_bag(out, raw=True)
+    return nt.generated(SCENARIO, out, duration_s, [*OVERRIDES, *extra])
 
 
 @pytest.fixture(scope="module")
@@ -59,32 +52,24 @@ def bag30(tmp_path_factory):
 
 
 def _overrides(extra: list[str]) -> str:
-    return "overrides:=[" + ",".join(f"'{o}'" for o in (*OVERRIDES, *extra)) + "]"
+    return nt.list_param("overrides", [*OVERRIDES, *extra])
 
 
-def _recorder(tmp_path: Path, ros_env, out: Path, *params: str, extra=()) -> Proc:
-    args = [executable("bag_recorder"), "--ros-args"]
-    for p in (f"scenario:={SCENARIO}", _overrides(list(extra)), f"output:={out}", *params):
-        args += ["-p", p]
-    return Proc(args, ros_env, tmp_path, "bag_recorder")
+def _recorder(tmp_path: Path, ros_env, out: Path, *params: str, extra=()) -> nt.Proc:
+    args = nt.node_args("bag_recorder", f"scenario:={SCENARIO}", _overrides(list(extra)),
+                        f"output:={out}", *params)  # fmt: skip
+    return nt.Proc(args, ros_env, tmp_path, "bag_recorder")
 
 
 def _trajectory(
     tmp_path: Path, ros_env, duration_s: float, rate_factor: float, extra=(), params=()
-) -> Proc:
-    args = [executable("trajectory_node"), "--ros-args"]
-    for p in (
-        f"scenario:={SCENARIO}",
-        _overrides(list(extra)),
-        f"duration_s:={float(duration_s)}",
-        f"rate_factor:={float(rate_factor)}",
-        "wait_for_subscribers:=1",
-        "wait_timeout_s:=30.0",
-        "qos_depth:=10000",
-        *params,
-    ):
-        args += ["-p", p]
-    return Proc(args, ros_env, tmp_path, "trajectory_node")
+) -> nt.Proc:
+    args = nt.node_args(
+        "trajectory_node", f"scenario:={SCENARIO}", _overrides(list(extra)),
+        f"duration_s:={float(duration_s)}", f"rate_factor:={float(rate_factor)}",
+        "wait_for_subscribers:=1", "wait_timeout_s:=30.0", "qos_depth:=10000", *params,
+    )  # fmt: skip
+    return nt.Proc(args, ros_env, tmp_path, "trajectory_node")
 
 
 def _assert_prefix(got, want, topic: str, at_least: int = 0) -> int:
@@ -204,10 +189,7 @@ def test_sigkill_then_repair_keeps_every_flushed_message(storage, bag30, procs, 
     node.kill()
     assert rec.proc.returncode == -signal.SIGKILL
     assert not (out / "metadata.yaml").exists()
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "bag", "repair", str(out)],
-        capture_output=True, text=True, timeout=120, cwd=REPO,
-    )  # fmt: skip
+    proc = nt.sim("bag", "repair", out, timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert f"repaired {storage} bag" in proc.stdout, proc.stdout
     got = read_bag(out, raw=True)
@@ -245,17 +227,12 @@ def test_invalid_parameters_exit_2(params, expected, ros_env, tmp_path):
     existing = tmp_path / "existing"
     existing.mkdir()
     (existing / "notes.txt").write_text("not a bag")
-    args = [executable("bag_recorder"), "--ros-args"]
-    for p in params:
-        p = p.replace("EXISTING", str(existing)).replace("OUT", str(tmp_path / "out"))
-        args += ["-p", p]
-    proc = subprocess.run(
-        args, env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
-    )
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 2, output
+    params = [
+        p.replace("EXISTING", str(existing)).replace("OUT", str(tmp_path / "out")) for p in params
+    ]
+    rc, output = nt.node_exit("bag_recorder", ros_env, *params)
+    assert rc == 2, output
     assert re.search(expected, output), output
-    assert "Traceback" not in output, output
     assert not (tmp_path / "out").exists()
 
 
@@ -263,12 +240,9 @@ def test_topics_parameter_records_only_those(bag3, procs, ros_env, tmp_path):
     """An explicit topic list (type from the graph) and receive-time log times."""
     deadline = time.monotonic() + TIMEOUT_S
     out = tmp_path / "rec"
-    args = [executable("bag_recorder"), "--ros-args"]
-    for p in (f"output:={out}", "topics:=['/reference/imu']", "stop_when_done:=true",
-              "log_time:=receive"):  # fmt: skip
-        args += ["-p", p]
-    rec = Proc(args, ros_env, tmp_path, "bag_recorder")
-    procs.append(rec)
+    args = nt.node_args("bag_recorder", f"output:={out}", "topics:=['/reference/imu']",
+                        "stop_when_done:=true", "log_time:=receive")  # fmt: skip
+    rec = nt.launch(procs, args, ros_env, tmp_path, "bag_recorder")
     rec.wait_for(r"recording 1 topic\(s\)", deadline)
     node = _trajectory(tmp_path, ros_env, 3.0, 0.0, params=["wait_for_all_topics:=false"])
     procs.append(node)

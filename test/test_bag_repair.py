@@ -40,7 +40,7 @@ from strapdown_ros.bag.reader import BagReadError, bag_info, read_bag
 from strapdown_ros.bag.repair import BagRepairError, repair_bag
 from strapdown_ros.bag.writer import DEFAULT_QOS, BagWriter
 from strapdown_ros.config import load_scenario
-from strapdown_ros.topics import produced_topics
+from strapdown_ros.plan import resolve_plan
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
@@ -697,4 +697,4 @@ def test_produced_topics_are_what_generate_writes(overrides, tmp_path):
         t["topic_metadata"]["name"]: t["topic_metadata"]["type"]
         for t in meta["topics_with_message_count"]
     }
-    assert produced_topics(load_scenario(SCENARIO, overrides)) == written
+    assert resolve_plan(load_scenario(SCENARIO, overrides)).topic_types() == written

@@ -21,10 +21,11 @@ import numpy as np
 import pytest
 
 from strapdown_ros.campaign import run_campaign
-from strapdown_ros.campaign.plan import CampaignPlan
 from strapdown_ros.campaign.results import finished_runs, read_run_errors, run_dir
+from strapdown_ros.campaign.runs import Campaign
 from strapdown_ros.campaign.vary import parse_vary
 from strapdown_ros.config import ScenarioError
+from strapdown_ros.logs import quiet
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "config" / "scenarios" / "default.yaml"
@@ -37,14 +38,14 @@ ERROR_TOPICS = ("/navigator/error/position", "/navigator/error/velocity",
 
 
 def test_runs_are_deterministic_and_independent_of_the_campaign_size():
-    plan = CampaignPlan(DEFAULT, duration_s=5.0, seed=7)
-    again = CampaignPlan(DEFAULT, duration_s=5.0, seed=7)
+    plan = Campaign(DEFAULT, duration_s=5.0, seed=7)
+    again = Campaign(DEFAULT, duration_s=5.0, seed=7)
     assert plan.run(37) == again.run(37)
     assert {"imu_errors.seed", "variation.bending.random.seed"} <= set(plan.seed_keys)
     assert all(k.endswith(".seed") for k in plan.seed_keys)  # and the aiding sensors' seeds
     seeds = [tuple(plan.run(k).seeds.values()) for k in range(50)]
     assert len(set(seeds)) == 50  # every run its own seeds
-    other = CampaignPlan(DEFAULT, duration_s=5.0, seed=8)
+    other = Campaign(DEFAULT, duration_s=5.0, seed=8)
     assert other.run(37).seeds != plan.run(37).seeds
     assert "navigator.imu_topic=/variation/imu_measured" in plan.run(0).overrides
     assert plan.shared_level == "reference"  # the bending seed varies: the variation is per run
@@ -52,17 +53,17 @@ def test_runs_are_deterministic_and_independent_of_the_campaign_size():
 
 def test_vary_draws_and_validates_through_the_scenario_model():
     v = parse_vary("navigator.initial_errors.attitude_rph_deg=normal([0, 0, 0], [0.1, 0.1, 1])")
-    plan = CampaignPlan(DEFAULT, duration_s=5.0, varies=[v])
+    plan = Campaign(DEFAULT, duration_s=5.0, varies=[v])
     draws = [plan.run(k).draws[v.key] for k in range(200)]
     heading = np.array([d[2] for d in draws])
     assert abs(heading.mean()) < 4 * 1 / np.sqrt(200) and 0.8 < heading.std() < 1.2
     scenario = plan.scenario(plan.run(3))
     assert list(scenario.navigator.initial_errors.attitude_rph_deg) == draws[3]
     u = parse_vary("imu_errors.gyro_bias_dph=uniform(-2, 2)")
-    values = [CampaignPlan(DEFAULT, varies=[u]).run(k).draws[u.key] for k in range(20)]
+    values = [Campaign(DEFAULT, varies=[u]).run(k).draws[u.key] for k in range(20)]
     assert all(-2 <= x <= 2 for x in values)
     with pytest.raises(ScenarioError) as info:
-        CampaignPlan(DEFAULT, varies=[parse_vary("imu_errors.gyro_arw=normal(0, 1)")])
+        Campaign(DEFAULT, varies=[parse_vary("imu_errors.gyro_arw=normal(0, 1)")])
     assert info.value.key == "imu_errors.gyro_arw"
     for bad in ("x=normal(1)", "x=gauss(0, 1)", "x=normal(0, -1)", "x=uniform(2, 1)",
                 "x=normal([0, 0], [1])", "normal(0, 1)", "x=normal(a, 1)"):  # fmt: skip
@@ -75,7 +76,7 @@ def test_a_campaign_needs_something_to_vary(tmp_path):
     text = DEFAULT.read_text().split("# IMU error model")[0]
     scenario.write_text(text)
     with pytest.raises(ScenarioError) as info:
-        CampaignPlan(scenario)
+        Campaign(scenario)
     assert info.value.key == "imu_errors"
 
 
@@ -107,7 +108,7 @@ def _generate_errors(tmp_path: Path, overrides: tuple[str, ...]) -> np.ndarray:
 @pytest.mark.slow
 def test_run_k_equals_generate_and_an_interrupted_campaign_resumes(tmp_path):
     out = tmp_path / "campaign"
-    result = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=2, log=lambda m: None)
+    result = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=2, log=quiet)
     assert result.ran == [0, 1, 2] and not result.failed and result.workers == 2
     summary = json.loads((run_dir(out, 2) / "summary.json").read_text())
     _, errors = read_run_errors(out, 2)
@@ -125,7 +126,7 @@ def test_run_k_equals_generate_and_an_interrupted_campaign_resumes(tmp_path):
     # a run lost (as by an interruption) is the only one run again, with the same bits
     (run_dir(out, 1) / "summary.json").unlink()
     before = read_run_errors(out, 0)[1]
-    again = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=1, log=lambda m: None)
+    again = run_campaign(DEFAULT, out, 3, duration_s=10.0, workers=1, log=quiet)
     assert again.ran == [1] and again.skipped == [0, 2]
     assert read_run_errors(out, 0)[1].tobytes() == before.tobytes()
     # a different campaign in the same directory is refused
@@ -138,7 +139,7 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
     out = tmp_path / "campaign"
     # a normal draw of a standard deviation goes negative in some runs: those runs fail
     vary = ["imu_errors.gyro_arw_dpsh=normal(0.05, 0.1)"]
-    plan = CampaignPlan(DEFAULT, duration_s=3.0, varies=[parse_vary(vary[0])])
+    plan = Campaign(DEFAULT, duration_s=3.0, varies=[parse_vary(vary[0])])
     draws = [plan.run(k).draws[vary[0].split("=")[0]] for k in range(4)]
     bad = {k for k, d in enumerate(draws) if d < 0}
     assert bad and len(bad) < 4
@@ -206,7 +207,7 @@ def test_scheduler_address_and_a_killed_worker(tmp_path):
         assert sorted(runs) == list(range(8))  # every run present once
         # and the same bits as a local run of the same index
         local = tmp_path / "local"
-        run_campaign(DEFAULT, local, 1, duration_s=20.0, workers=1, log=lambda m: None)
+        run_campaign(DEFAULT, local, 1, duration_s=20.0, workers=1, log=quiet)
         assert read_run_errors(local, 0)[1].tobytes() == read_run_errors(out, 0)[1].tobytes()
     finally:
         _stop(procs)

@@ -172,30 +172,25 @@ def test_frames_stage_same_bytes_for_any_chunking() -> None:
     the same derived messages, topic by topic, in the same order; counts as derived_counts."""
     from strapdown_ros.bag.batches import merge_order
     from strapdown_ros.config import load_scenario
-    from strapdown_ros.stages.frames import FramesStage, derived_counts, derived_topics
-    from strapdown_ros.stages.reference import (
-        build_trajectory,
-        output_cycles,
-        reference_batch_chunks,
-    )
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.stages.tf import TFStage, derived_topic_plans, derived_topics
+    from strapdown_ros.stages.trajectory import reference_batch_chunks
     from strapdown_ros.stages.variation import VariationStage
-    from strapdown_ros.topics import produced_topics
 
     repo = Path(__file__).resolve().parent.parent
     scenario = load_scenario(repo / "config/scenarios/default.yaml", duration_s=3.0)
     scenario = scenario.with_recording(increments=True)
-    trajectory = build_trajectory(scenario)
-    cycles = output_cycles(scenario, trajectory)
-    variation = VariationStage.offline(scenario, cycles)
+    plan = resolve_plan(scenario)
+    variation = VariationStage.offline(scenario, plan.cycles)
     source: list = []
-    for _, batches in reference_batch_chunks(scenario, trajectory):
-        source += batches + variation.feed_batches(batches, {})
-    whole = FramesStage(scenario, offsets=variation.offsets, cycles=cycles)
+    for _, batches in reference_batch_chunks(plan):
+        source += batches + variation.feed_batches(batches)
+    whole = TFStage(plan, offsets=variation.offsets)
     expected: dict[str, list[bytes]] = {}
     for b in whole.feed_batches(source):
         expected.setdefault(b.topic, []).extend(bytes(p) for p in b.payloads)
     items = [(source[k].topic, stamp, source[k].payloads[i]) for k, i, stamp in merge_order(source)]
-    live = FramesStage(scenario)  # the node computes the offsets itself
+    live = TFStage(plan)  # the node computes the offsets itself
     got: dict[str, list[bytes]] = {}
     rng = np.random.default_rng(7)
     pos = 0
@@ -210,16 +205,11 @@ def test_frames_stage_same_bytes_for_any_chunking() -> None:
     assert sorted(got.pop("/tf")) == sorted(expected.pop("/tf"))
     assert got == expected
     produced = {b.topic: b.msgtype for b in source}  # the stages fed here
-    assert set(produced) <= set(produced_topics(scenario))
+    assert set(produced) <= set(plan.topic_types())
     assert set(expected) | {"/tf_static", "/tf"} == set(derived_topics(scenario, produced))
-    topics = scenario.recording.topics
-    counts = {
-        key: sum(len(b.payloads) for b in source if b.topic == topics[key])
-        for key in ("reference_odom", "variation_odom", "variation_reference_odom",
-                    "reference_imu", "variation_imu", "variation_reference_imu")
-    }  # fmt: skip
+    upstream = {t: p for t, p in plan.topics.items() if t in produced}
     want = {t: len(v) for t, v in expected.items()} | {"/tf_static": 1, "/tf": n_tf}
-    assert derived_counts(scenario, counts) == want
+    assert {p.topic: p.count for p in derived_topic_plans(plan, upstream)} == want
 
 
 def test_recorder_reads_the_tf_stamp_for_the_log_time() -> None:

@@ -19,7 +19,8 @@ from strapdown_ros.core.rotations import euler_from_dcm
 from strapdown_ros.core.trajectory.base import local_to_e0
 from strapdown_ros.generate import generate_dataset
 from strapdown_ros.messages import navsatfix_geodetic, odometry_state, stream_from_messages
-from strapdown_ros.stages.reference import build_trajectory, generate_reference
+from strapdown_ros.plan import build_trajectory
+from strapdown_ros.stages.trajectory import generate_reference
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = REPO / "config" / "scenarios" / "default.yaml"
@@ -283,14 +284,14 @@ def test_validate_command_and_bad_key_message(tmp_path):
 
 def test_pieces_give_the_same_messages_as_one_stream(monkeypatch):
     """Chunked generation (bounded memory, overlapped writing) changes no byte of any message."""
-    from strapdown_ros.stages import reference
+    from strapdown_ros.stages import trajectory as reference
 
     scenario = load_scenario(DEFAULT, duration_s=30.0)
     whole = reference.reference_batches(scenario, generate_reference(scenario))
     chunks = reference.generate_reference_chunks
     monkeypatch.setattr(reference, "CHUNK_CYCLES", 1000)
     monkeypatch.setattr(
-        reference, "generate_reference_chunks", lambda s, tr: chunks(s, tr, 1000, 400)
+        reference, "generate_reference_chunks", lambda s: chunks(s, 1000, 400)
     )
     pieces = list(reference.reference_batch_chunks(scenario))
     assert len(pieces) == 7
@@ -364,19 +365,20 @@ def test_bad_variation_key_is_rejected_before_work(tmp_path):
 def test_streamed_variation_equals_one_vectorized_run(monkeypatch):
     """generate computes the variation piece by piece (windows with lead=1) while writing; the
     messages equal those of one vectorized run over the whole decoded reference, bit for bit."""
-    from strapdown_ros.stages import reference, variation
+    from strapdown_ros.stages import trajectory as reference
+    from strapdown_ros.stages import variation
 
     scenario = load_scenario(DEFAULT, duration_s=20.0)
     chunks = reference.generate_reference_chunks
     monkeypatch.setattr(
-        reference, "generate_reference_chunks", lambda s, tr: chunks(s, tr, 600, 200)
+        reference, "generate_reference_chunks", lambda s: chunks(s, 600, 200)
     )
     ref_batches, var_batches = [], []
     for _, batches in reference.reference_batch_chunks(scenario):
         ref_batches.append(batches)
     streamer = variation.VariationStage.offline(scenario, 4000)
     for batches in ref_batches:
-        var_batches.append(streamer.feed_batches(batches, {}))
+        var_batches.append(streamer.feed_batches(batches))
     merged = [
         variation.Batch(g[0].topic, g[0].msgtype, np.concatenate([b.stamps_ns for b in g]),
                       [p for b in g for p in b.payloads])

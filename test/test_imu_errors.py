@@ -609,12 +609,13 @@ def test_scenario_topic_rules_name_the_key():
 
 def test_bag_metadata_names_the_given_preset_and_seed():
     """``custom_data`` records ``imu_errors.preset`` / ``.seed`` as the file gives them."""
-    from strapdown_ros.generate import bag_custom_data
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.plan.metadata import bag_custom_data
 
     reference = {"input_topic": "/reference/imu"}
 
     def custom(section):
-        data = bag_custom_data(parse_scenario(_scenario({**reference, **section})))
+        data = bag_custom_data(resolve_plan(parse_scenario(_scenario({**reference, **section}))))
         return {k: v for k, v in data.items() if k.startswith("imu_errors.")}
 
     assert custom({"preset": "tactical", "seed": 4}) == {
@@ -623,17 +624,17 @@ def test_bag_metadata_names_the_given_preset_and_seed():
     }
     assert custom({"seed": 0}) == {"imu_errors.seed": "0"}
     assert custom({"gyro_arw_dpsh": 0.1}) == {}
-    assert "imu_errors.seed" not in bag_custom_data(parse_scenario(_scenario(None)))
+    assert "imu_errors.seed" not in bag_custom_data(resolve_plan(parse_scenario(_scenario(None))))
 
 
 def test_run_expects_the_measured_stream_under_its_topic_with_its_input_count():
     """``strapdown-sim run`` counts the measured IMU as ``generate`` writes it: under
     ``imu_errors.output_topic``, one message per message of ``imu_errors.input_topic``."""
-    from strapdown_ros.pipeline import expected_counts
+    from strapdown_ros.plan import resolve_plan
 
     section = {"input_topic": "/reference/imu", "output_topic": "/ref/measured"}
     scenario = parse_scenario({**_scenario(section), "duration_s": 0.5})  # 50 cycles at 100 Hz
-    assert expected_counts(scenario) == {
+    assert resolve_plan(scenario).counts() == {
         "/reference/imu": 50,
         "/reference/odom": 51,
         "/reference/fix": 51,
@@ -643,3 +644,23 @@ def test_run_expects_the_measured_stream_under_its_topic_with_its_input_count():
         "/tf": 51,
         "/reference/odom_map": 51,
     }
+
+
+def test_bias_instability_factor_from_the_flicker_psd():
+    """IEEE Std 952 defines bias instability B by the flicker rate-noise PSD
+    ``S(f) = B² / (2π f)`` (one-sided); its Allan variance
+    ``σ²(τ) = 4 ∫ S(f) sin⁴(π f τ) / (π f τ)² df`` (IEEE Std 952, annex C)
+    is flat at ``(2 ln 2 / π) B²``. Integrated here numerically (scipy.integrate.quad, in
+    u = π f τ): the factor the package reads ``B`` with is that integral's square root, not a
+    constant restated."""
+    from scipy.integrate import quad
+
+    b = 1.0
+
+    def integrand(u: float) -> float:  # 4 S(f) sin⁴(u)/u² df with f = u/(π τ): τ cancels
+        return 4.0 * b**2 / (2.0 * math.pi) * math.sin(u) ** 4 / u**3
+
+    pieces = [quad(integrand, k * math.pi, (k + 1) * math.pi)[0] for k in range(2000)]
+    tail = 4.0 * b**2 / (2.0 * math.pi) * 3.0 / 8.0 / (2.0 * (2000 * math.pi) ** 2)
+    flat = math.sqrt(sum(pieces) + tail)
+    assert abs(allan.BIAS_INSTABILITY_FACTOR - flat) < 1e-6, (allan.BIAS_INSTABILITY_FACTOR, flat)

@@ -2,7 +2,7 @@
 
 A bag is generated offline for 2 s of the default scenario (its variation, no navigator). Its
 ideal ``/variation/imu`` is the input; the reference output is computed in this process by
-:func:`~strapdown_ros.stages.measurement.measured_imu_fields` on the whole stream at once
+:func:`~strapdown_ros.stages.imu_errors.measured_imu_fields` on the whole stream at once
 (one model, one call) and serialized with the project's codec. Then, as separate processes over
 real DDS in this session's ROS domain:
 
@@ -15,40 +15,34 @@ real DDS in this session's ROS domain:
    offline noise: they differ from the uninterrupted offline run by quantization only);
 3. invalid parameters or scenario: exit 2 naming the key.
 
-:class:`~strapdown_ros.stages.measurement.MeasuredImuStream` (no DDS) is also checked in-process.
+:class:`~strapdown_ros.stages.imu_errors.ImuErrorsStage` (no DDS) is also checked in-process.
 Every wait has a timeout; children are killed at teardown.
 """
 
 from __future__ import annotations
 
-import pickle
 import re
-import subprocess
-import sys
 import time
 from pathlib import Path
 
+import node_testing as nt
 import numpy as np
 import pytest
-from node_testing import Proc, bitwise_equal, executable, padded
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.core.imu_errors import ImuErrorModel
 from strapdown_ros.messages import imu_increments
-from strapdown_ros.stages.measurement import (
-    MeasuredImuStream,
-    generate_measured_stream,
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.plan.chain import offline_stages
+from strapdown_ros.stages.imu_errors import (
+    ImuErrorsStage,
     measured_imu_fields,
 )
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-HELPERS = Path(__file__).resolve().parent / "ros_helpers"
-RECORDER = HELPERS / "raw_recorder.py"
-REPLAY = HELPERS / "reference_replay.py"
 DURATION_S = 2.0
 M_VAR = 398  # variation cycles 0..398 of the 400 reference cycles at 200 Hz
 #: Tactical preset with fine quanta, so that noise (not quantization) dominates each sample and
@@ -72,13 +66,7 @@ def scenario():
 def bag(tmp_path_factory):
     """``strapdown-sim generate`` of the scenario: (path, contents)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
-    cmd += ["--duration", str(DURATION_S), "--quiet"]
-    for o in OVERRIDES:
-        cmd += ["--set", o]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    contents = read_bag(out, raw=True)
+    contents = nt.generated(SCENARIO, out, DURATION_S, OVERRIDES, timeout=120)
     assert len(contents.topics[IN].payloads) == M_VAR
     return out, contents
 
@@ -145,12 +133,12 @@ def test_measured_messages_follow_the_model_and_rep145(bag, scenario, offline):
 def test_stream_message_by_message_equals_offline(bag, scenario, offline):
     """The node's code path (one payload at a time) equals one call on the whole stream."""
     _, contents = bag
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     got = [stream.on_payload(p) for p in contents.topics[IN].payloads]
     assert got == offline
     assert stream.published == M_VAR and stream.last_cycle == M_VAR and stream.runs == 1
     # generate's path: batches of other sizes.
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     d = contents.topics[IN]
     out = []
     for a, b in ((0, 7), (7, 8), (8, 300), (300, M_VAR)):
@@ -166,13 +154,13 @@ def test_stream_payload_batches_equal_offline(bag, scenario, offline):
     malformed payload falls back to one by one: only that message is dropped and reported."""
     _, contents = bag
     payloads = [bytes(p) for p in contents.topics[IN].payloads]
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     got = []
     for a in range(0, len(payloads), 9):
         got += stream.on_payloads(payloads[a : a + 9])
     assert got == offline and stream.runs == 1
     errors: list[str] = []
-    stream = MeasuredImuStream(scenario, error=errors.append)
+    stream = ImuErrorsStage(scenario, error=errors.append)
     got = stream.on_payloads(payloads[:5] + [b"\x00\x01\x00\x00garbage"] + payloads[5:12])
     assert got == offline[:12] and len(errors) == 1 and "decode" in errors[0]
 
@@ -181,7 +169,7 @@ def test_stream_restart_offgrid_and_late_start(bag, scenario, offline):
     _, contents = bag
     payloads = contents.topics[IN].payloads
     warn, error = [], []
-    stream = MeasuredImuStream(scenario, warn=warn.append, error=error.append)
+    stream = ImuErrorsStage(scenario, warn=warn.append, error=error.append)
     # Late start at cycle 11: advanced over 1..10; without quantization differences the noise
     # is the offline one, so the result is within a quantum (here: a few 1e-9 rad) of it.
     first = stream.on_payload(payloads[10])
@@ -219,55 +207,37 @@ def test_the_scenario_checks_the_topics():
         ["variation=null", "navigator=null", "imu_errors={input_topic: /reference/imu}"],
         DURATION_S,
     )
-    stream = generate_measured_stream(ok)
-    assert stream is not None and stream.input_topic == "/reference/imu"
-    assert stream.output_topic == "/variation/imu_measured"
+    stages = dict(offline_stages(resolve_plan(ok)))
+    assert stages["imu_errors"].input_topic == "/reference/imu"
+    assert stages["imu_errors"].output_topic == "/variation/imu_measured"
     with pytest.raises(ScenarioError, match="imu_errors.output_topic"):
         load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
-    assert generate_measured_stream(load_scenario(SCENARIO, ["imu_errors=null"])) is None
+    plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null"]))
+    assert "imu_errors" not in dict(offline_stages(plan))
 
 
 # ---------------------------------------------------------------------------------------------
 # Processes over DDS
 
 
-def _params(*params: str) -> list[str]:
-    args = []
-    for p in params:
-        args += ["-p", p]
-    return args
+def _node(procs, env, tmp_path, *params: str) -> nt.Proc:
+    args = nt.node_args(
+        "imu_model_node", f"scenario:={SCENARIO}", nt.list_param("overrides", OVERRIDES),
+        f"duration_s:={DURATION_S}", "wait_for_subscribers:=1", *params,
+    )  # fmt: skip
+    return nt.launch(procs, args, env, tmp_path, "imu_model_node")
 
 
-def _node(procs, env, tmp_path, *params: str) -> Proc:
-    overrides = ",".join(f"'{o}'" for o in OVERRIDES)
-    args = [executable("imu_model_node"), "--ros-args"]
-    args += _params(
-        f"scenario:={SCENARIO}",
-        f"overrides:=[{overrides}]",
-        f"duration_s:={DURATION_S}",
-        "wait_for_subscribers:=1",
-        *params,
-    )
-    node = Proc(args, env, tmp_path, "imu_model_node")
-    procs.append(node)
-    return node
+def _recorder(procs, env, tmp_path, n_out: int, n_odom: int) -> tuple[nt.Proc, Path]:
+    topics = [(OUT, cdr.IMU, n_out), (ODOM, cdr.ODOMETRY, n_odom)]
+    return nt.raw_recorder(procs, env, tmp_path, topics, TIMEOUT_S - 5)
 
 
-def _recorder(procs, env, tmp_path, n_out: int, n_odom: int) -> tuple[Proc, Path]:
-    out = tmp_path / "recording.pkl"
-    args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
-    args += ["--topic", f"{OUT}={cdr.IMU}={n_out}", "--topic", f"{ODOM}={cdr.ODOMETRY}={n_odom}"]
-    rec = Proc(args, env, tmp_path, "recorder")
-    procs.append(rec)
-    return rec, out
-
-
-def _replay(procs, env, tmp_path, path, *faults: str) -> Proc:
-    args = [sys.executable, str(REPLAY), "--bag", str(path), "--imu-topic", IN]
-    args += ["--odom-topic", ODOM, "--interval", "0.001", "--timeout", str(TIMEOUT_S - 10)]
-    replay = Proc([*args, *faults], env, tmp_path, "replay")
-    procs.append(replay)
-    return replay
+def _replay(procs, env, tmp_path, path, *faults: str) -> nt.Proc:
+    return nt.reference_replay(
+        procs, env, tmp_path, path, "--imu-topic", IN, "--odom-topic", ODOM,
+        "--interval", "0.001", "--timeout", str(TIMEOUT_S - 10), *faults,
+    )  # fmt: skip
 
 
 @pytest.mark.slow
@@ -282,17 +252,14 @@ def test_node_equals_offline(bag, offline, procs, ros_env, tmp_path, executor):
     node = _node(procs, ros_env, tmp_path, f"executor:={executor}")
     node.wait_for(r"subscribed to /variation/imu", deadline)
     replay = _replay(procs, ros_env, tmp_path, path)
-    assert replay.wait(deadline) == 0, replay.describe()
-    assert node.wait(deadline) == 0, node.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
-    assert "Traceback" not in node.output and "WARN" not in node.output, node.describe()
+    nt.wait_ok(deadline, replay, node, rec)
+    nt.assert_clean(node, warnings=False)
     assert f"published {M_VAR} measured messages" in node.output, node.describe()
-    with open(out, "rb") as f:
-        got = pickle.load(f)["topics"][OUT]
+    got = nt.load_recording(out)["topics"][OUT]
     assert len(got) == M_VAR
-    bad = [i for i, (g, w) in enumerate(zip(got, offline, strict=True)) if g != padded(w)]
+    bad = [i for i, (g, w) in enumerate(zip(got, offline, strict=True)) if g != nt.padded(w)]
     assert not bad, f"payloads {bad[:5]}... differ from the offline model"
-    assert bitwise_equal(cdr.deserialize(cdr.IMU, got), cdr.deserialize(cdr.IMU, offline))
+    assert nt.bitwise_equal(cdr.deserialize(cdr.IMU, got), cdr.deserialize(cdr.IMU, offline))
 
 
 @pytest.mark.slow
@@ -308,26 +275,22 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     node.wait_for(r"subscribed to /variation/imu", deadline)
     faults = ("--drop", str(DROP), "--swap", str(SWAP), "--duplicate", str(DUP))
     replay = _replay(procs, ros_env, tmp_path, path, *faults)
-    assert replay.wait(deadline) == 0, replay.describe()
-    assert node.wait(deadline) == 0, node.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
+    nt.wait_ok(deadline, replay, node, rec)
+    nt.assert_clean(node)
     log = node.output
-    assert "Traceback" not in log, node.describe()
 
     def st(m: int) -> str:
-        t = scenario.start_time_ns + m * scenario.period_ns
-        return re.escape(f"{t // 1_000_000_000}.{t % 1_000_000_000:09d}")
+        return nt.stamp_regex(scenario.start_time_ns, scenario.period_ns, m)
 
     assert re.search(rf"WARN.*{IN}: gap: stamp {st(DROP + 1)} .*follows {st(DROP - 1)}", log)
     assert re.search(rf"WARN.*{IN}: gap: stamp {st(SWAP + 1)} .*follows {st(SWAP - 1)}", log)
     assert re.search(rf"WARN.*{IN}: out-of-order stamp {st(SWAP)} .*after {st(SWAP + 1)}", log)
     assert re.search(rf"WARN.*{IN}: duplicate stamp {st(DUP)} .*after {st(DUP)}", log)
-    with open(out, "rb") as f:
-        got = pickle.load(f)["topics"][OUT]
+    got = nt.load_recording(out)["topics"][OUT]
     assert [_cycle(scenario, p) for p in got] == expect
     # Before the first gap: the offline bytes.
     for p in got[: DROP - 1]:
-        assert p == padded(offline[_cycle(scenario, p) - 1])
+        assert p == nt.padded(offline[_cycle(scenario, p) - 1])
     # After it: the offline noise continues; only the quantizer's running sum lacks the
     # missing increments (≤ 2 quanta on the first message after a gap, ≤ 1 after).
     T = scenario.period_ns * 1e-9
@@ -339,13 +302,13 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     noise = np.std(np.asarray(b.angular_velocity) - contents[IN].angular_velocity[:1], axis=0)
     assert np.all(noise * T / 1e-9 > 100)  # the tolerance above is far below the noise
     # The exact expectation: the same message sequence through the same code, in-process.
-    stream = MeasuredImuStream(scenario)
+    stream = ImuErrorsStage(scenario)
     order = [m for m in range(1, M_VAR + 1) if m != DROP]
     i = order.index(SWAP)
     order[i], order[i + 1] = order[i + 1], order[i]
     order.insert(order.index(DUP) + 1, DUP)
     want = [stream.on_payload(contents.topics[IN].payloads[m - 1]) for m in order]
-    assert got == [padded(w) for w in want if w is not None]
+    assert got == [nt.padded(w) for w in want if w is not None]
 
 
 @pytest.mark.parametrize(
@@ -385,9 +348,6 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
-    args = [executable("imu_model_node"), "--ros-args", *_params(*params)]
-    proc = subprocess.run(args, env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO)
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 2, output
+    rc, output = nt.node_exit("imu_model_node", ros_env, *params)
+    assert rc == 2, output
     assert re.search(expected, output), output
-    assert "Traceback" not in output, output

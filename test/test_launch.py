@@ -236,9 +236,15 @@ def test_a_failing_node_stops_the_launch_at_once(tmp_path, ros_env) -> None:
 def test_params_file_names_only_declared_parameters() -> None:
     params = yaml.safe_load(PARAMS.read_text())
     assert set(params) == set(NODES)
+    nodes_dir = REPO / "strapdown_ros" / "nodes"
+    # the nodes' shared modules (parameters, qos, lifecycle, ...), not the other executables
+    shared = "".join(
+        p.read_text()
+        for p in sorted(nodes_dir.glob("*.py"))
+        if not p.stem.endswith("_node") and not p.stem.startswith("bag_")
+    )
     for node, body in params.items():
-        source = (REPO / "strapdown_ros" / "nodes" / f"{node}.py").read_text()
-        source += (REPO / "strapdown_ros" / "nodes" / "_common.py").read_text()
+        source = (nodes_dir / f"{node}.py").read_text() + shared
         for name in body["ros__parameters"]:
             assert re.search(rf'declare_\w+\(\s*(self|node),\s*"{name}"', source), (node, name)
 

@@ -10,7 +10,7 @@ from strapdown_ros.core.navigation.multirate import NavSolution, navigate_multir
 from strapdown_ros.core.navigation.state import state_from_stream, truth_navigation
 from strapdown_ros.core.rotations import dcm_from_quat, dcm_from_rotvec, quat_from_dcm
 from strapdown_ros.core.young import C_NED_TO_UEN, young_angles_from_dcm
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 DEFAULT = "config/scenarios/default.yaml"
 NO_SECTIONS = ("variation=null", "navigator=null", "imu_errors=null")  # the reference alone

@@ -23,7 +23,7 @@ from strapdown_ros.core.navigation import (
 )
 from strapdown_ros.core.rotations import dcm_from_euler, quat_from_dcm
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO_ROOT / "config" / "scenarios"

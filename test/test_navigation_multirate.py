@@ -29,7 +29,7 @@ from strapdown_ros.core.rotations import (
 )
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.young import young_error_angles
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 DURATION_S = 60.0

@@ -4,7 +4,7 @@
   stream, the scenario's gravitation model), every bad key or value named by its dotted key,
   and the cross-field rules against the rest of the scenario.
 * ``navigator_node``'s parameters go through the same model and name the parameter.
-* :class:`NavigationStage`: the same ``/navigator/*`` bytes for any chunking and any input form
+* :class:`NavigatorStage`: the same ``/navigator/*`` bytes for any chunking and any input form
   (decoded fields, raw payloads, ``generate``'s batches); errors from ``core/navigation/errors``.
 """
 
@@ -17,21 +17,23 @@ import pytest
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.config import DEFAULT_TOPICS, ScenarioError, load_scenario, parse_scenario
-from strapdown_ros.config.base import validate_section
-from strapdown_ros.config.navigator import (
-    NavigatorSpec,
+from strapdown_ros.config import (
+    DEFAULT_TOPICS,
+    ScenarioError,
+    load_scenario,
     navigator_spec,
-    resolve_navigator,
+    parse_scenario,
 )
+from strapdown_ros.config.base import validate_section
+from strapdown_ros.config.navigator import NavigatorSpec, resolve_navigator
 from strapdown_ros.core.navigation.errors import (
     attitude_error_young,
     position_error_ned,
     velocity_error_ned,
 )
 from strapdown_ros.messages import stream_fields
-from strapdown_ros.stages.navigation import NavigationStage, navigate_messages
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.navigator import NavigatorStage, navigate_messages
+from strapdown_ros.stages.trajectory import generate_reference
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT = REPO / "config" / "scenarios" / "default.yaml"
@@ -158,8 +160,8 @@ def test_scenario_initialization_needs_the_initial_state() -> None:
 
 def test_node_parameters_go_through_the_model() -> None:
     pytest.importorskip("rclpy")
-    from strapdown_ros.nodes._common import ParameterError
     from strapdown_ros.nodes.navigator_node import navigator_section
+    from strapdown_ros.nodes.parameters import ParameterError
 
     s = load_scenario(DEFAULT, [], 1.0)
     spec = navigator_section(s, {"imu_topic": "/reference/imu", "n": 4})  # the file's truth
@@ -229,12 +231,12 @@ def _by_topic(messages):
 def test_any_chunking_and_input_form_gives_the_same_bytes(reference_input) -> None:
     s, imu, odom = reference_input
     order = _live_order(imu, odom)
-    whole = NavigationStage.for_scenario(s).feed_fields(imu, odom, order)
+    whole = NavigatorStage.for_scenario(s).feed_fields(imu, odom, order)
     assert len(whole) == 5 * (len(imu.stamps_ns) // 10 + 1)
     imu_rows = np.concatenate([[0], np.cumsum(order)])
     rng = np.random.default_rng(3)
     for _ in range(3):
-        stage = NavigationStage.for_scenario(s)
+        stage = NavigatorStage.for_scenario(s)
         got, k = [], 0
         while k < order.size:
             m = int(rng.integers(1, 60))
@@ -255,13 +257,13 @@ def test_any_chunking_and_input_form_gives_the_same_bytes(reference_input) -> No
         else:
             items.append(("truth", odom_p[i_odom]))
             i_odom += 1
-    stage = NavigationStage.for_scenario(s)
+    stage = NavigatorStage.for_scenario(s)
     got = []
     for k in range(0, len(items), 2):
         got += stage.on_batch(items[k : k + 2])
     assert _by_topic(got) == _by_topic(whole) and stage.runs == 1
     # generate's pieces (period given): truth then Imu of each piece.
-    stage = NavigationStage.for_scenario(s, period_ns=s.period_ns)
+    stage = NavigatorStage.for_scenario(s, period_ns=s.period_ns)
     batches: list[Batch] = []
     for a in range(0, len(imu.stamps_ns), 137):
         b = min(a + 137, len(imu.stamps_ns))
@@ -288,7 +290,7 @@ def test_errors_come_from_core_errors(reference_input) -> None:
     from strapdown_ros.messages import odometry_state
 
     s, imu, odom = reference_input
-    stage = NavigationStage.for_scenario(s)
+    stage = NavigatorStage.for_scenario(s)
     out = _by_topic(stage.feed_fields(imu, odom, _live_order(imu, odom)))
     nav = odometry_state(cdr.deserialize(cdr.ODOMETRY, out["/navigator/odom"]))
     truth = odometry_state(odom)
@@ -316,15 +318,15 @@ def test_errors_come_from_core_errors(reference_input) -> None:
 def test_scenario_initialization_and_nav_period(reference_input) -> None:
     s, imu, odom = reference_input
     spec = navigator_spec(s).model_copy(update={"initialization": "scenario", "truth_topic": ""})
-    stage = NavigationStage.for_scenario(s, spec=spec)
+    stage = NavigatorStage.for_scenario(s, spec=spec)
     out = _by_topic(stage.feed_fields(imu, None))
     assert set(out) == {"/navigator/odom", "/navigator/fix"}
     assert len(out["/navigator/odom"]) == len(imu.stamps_ns) // 10 + 1
     # nav_period_s: N from the detected T (5 ms): 0.02 s is N = 4; 0.0123 s is refused.
-    stage = NavigationStage.for_scenario(s, nav_period_s=0.02)
+    stage = NavigatorStage.for_scenario(s, nav_period_s=0.02)
     out = _by_topic(stage.feed_fields(imu, odom, _live_order(imu, odom)))
     assert stage.n == 4 and len(out["/navigator/odom"]) == len(imu.stamps_ns) // 4 + 1
     logged: list[str] = []
-    stage = NavigationStage.for_scenario(s, nav_period_s=0.0123, error=logged.append)
+    stage = NavigatorStage.for_scenario(s, nav_period_s=0.0123, error=logged.append)
     assert stage.feed_fields(imu, odom, _live_order(imu, odom)) == []
     assert stage.failed and "whole multiple" in logged[0]

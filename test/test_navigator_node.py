@@ -4,7 +4,7 @@
 1. ``generate`` with the default ``navigator`` section writes the five navigator topics; their
    values agree with an independent offline computation from the bag's own variation messages
    (``stream_from_messages`` → core navigator → ``navigation_errors`` on the E0 truth).
-2. :class:`NavigationStage` fed the bag's payloads one at a time (live order) publishes exactly
+2. :class:`NavigatorStage` fed the bag's payloads one at a time (live order) publishes exactly
    the bag's payloads; with a dropped and a swapped IMU message it logs them, never integrates
    across the gap, and restarts from the truth.
 3. trajectory_node → variation_node → navigator_node → recorder over real DDS: message for
@@ -13,28 +13,23 @@
 
 from __future__ import annotations
 
-import pickle
-import subprocess
-import sys
 import time
 from pathlib import Path
 
+import node_testing as nt
 import numpy as np
 import pytest
-from node_testing import executable, scenario_without_tf
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.reader import read_bag
-from strapdown_ros.config import load_scenario
-from strapdown_ros.config.navigator import navigator_spec
+from strapdown_ros.config import load_scenario, navigator_spec
 from strapdown_ros.core.navigation import navigate_multirate, state_from_stream
 from strapdown_ros.core.navigation.errors import navigation_errors
 from strapdown_ros.messages import stream_from_messages
-from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.navigator import NavigatorStage
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
-HELPERS = Path(__file__).resolve().parent / "ros_helpers"
+SCENARIO = nt.scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 DURATION_S = 3.0
 NAV_TOPICS = {
     "/navigator/odom": cdr.ODOMETRY,
@@ -54,11 +49,7 @@ def scenario():
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
-    cmd += ["--duration", str(DURATION_S), "--quiet"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    return out, read_bag(out, raw=True)
+    return out, nt.generated(SCENARIO, out, DURATION_S, timeout=120)
 
 
 def _variation_stream(contents, scenario):
@@ -106,8 +97,8 @@ def test_generate_writes_navigator_streams(bag, scenario) -> None:
 def _solver(scenario, warnings):
     """The stage as navigator_node builds it (period from the stamps, end from the scenario)."""
     spec = navigator_spec(scenario)
-    return NavigationStage.for_scenario(
-        scenario, end_ns=input_end_ns(scenario, spec.imu_topic), warn=warnings.append,
+    return NavigatorStage.for_scenario(
+        scenario, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), warn=warnings.append,
         error=warnings.append,
     )  # fmt: skip
 
@@ -233,8 +224,8 @@ def test_scenario_rejects_bad_navigator_sections() -> None:
 
 
 def test_initial_errors_show_in_the_first_output(scenario) -> None:
-    from strapdown_ros.stages.navigation import initial_state_from_truth
-    from strapdown_ros.stages.reference import generate_reference
+    from strapdown_ros.stages.navigator import initial_state_from_truth
+    from strapdown_ros.stages.trajectory import generate_reference
 
     s = load_scenario(
         SCENARIO,
@@ -271,11 +262,8 @@ def test_initial_errors_show_in_the_first_output(scenario) -> None:
 
 @pytest.mark.slow
 def test_three_node_pipeline_equals_generate(bag, procs, ros_env, tmp_path) -> None:
-    from node_testing import Proc
-
     _, contents = bag
     deadline = time.monotonic() + TIMEOUT_S
-    out = tmp_path / "recording.pkl"
     # The recorder also takes variation_node's other outputs (it waits for a subscription on
     # each before subscribing to the reference).
     others = {
@@ -284,21 +272,12 @@ def test_three_node_pipeline_equals_generate(bag, procs, ros_env, tmp_path) -> N
         "/variation/reference/odom": cdr.ODOMETRY,
     }
     counts = {t: len(contents.topics[t].payloads) for t in [*NAV_TOPICS, *others]}
-    args = [sys.executable, str(HELPERS / "raw_recorder.py"), "--out", str(out)]
-    args += ["--timeout", str(TIMEOUT_S - 10)]
-    for topic, msgtype in [*NAV_TOPICS.items(), *others.items()]:
-        args += ["--topic", f"{topic}={msgtype}={counts[topic]}"]
-    rec = Proc(args, ros_env, tmp_path, "recorder")
-    procs.append(rec)
+    topics = [(t, msgtype, counts[t]) for t, msgtype in [*NAV_TOPICS.items(), *others.items()]]
+    rec, out = nt.raw_recorder(procs, ros_env, tmp_path, topics, TIMEOUT_S - 10)
     common = [f"scenario:={SCENARIO}", f"duration_s:={DURATION_S}"]
 
-    def node(name: str, *params: str) -> Proc:
-        cmd = [executable(name), "--ros-args"]
-        for p in (*common, *params):
-            cmd += ["-p", p]
-        proc = Proc(cmd, ros_env, tmp_path, name)
-        procs.append(proc)
-        return proc
+    def node(name: str, *params: str) -> nt.Proc:
+        return nt.launch(procs, nt.node_args(name, *common, *params), ros_env, tmp_path, name)
 
     nav = node("navigator_node", "wait_for_subscribers:=1", "qos_depth:=5000")
     nav.wait_for(r"subscribed to /variation/imu", deadline)
@@ -308,14 +287,9 @@ def test_three_node_pipeline_equals_generate(bag, procs, ros_env, tmp_path) -> N
         "trajectory_node", "rate_factor:=1.0", "time_source:=wall", "wait_for_subscribers:=1",
         "wait_for_all_topics:=false", "qos_depth:=5000",
     )  # fmt: skip
-    assert traj.wait(deadline) == 0, traj.describe()
-    assert var.wait(deadline) == 0, var.describe()
-    assert nav.wait(deadline) == 0, nav.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + nav.describe()
-    for p in (var, nav):
-        assert "Traceback" not in p.output and "WARN" not in p.output, p.describe()
-    with open(out, "rb") as f:
-        recorded = pickle.load(f)["topics"]
+    nt.wait_ok(deadline, traj, var, nav, rec)
+    nt.assert_clean(var, nav, warnings=False)
+    recorded = nt.load_recording(out)["topics"]
     for topic in NAV_TOPICS:
         want = [bytes(p) for p in contents.topics[topic].payloads]
         got = [bytes(p)[: len(w)] for p, w in zip(recorded[topic], want, strict=True)]

@@ -1,6 +1,6 @@
 """The nodes' shared helpers that need no ROS graph: input batches and pacing.
 
-:class:`~strapdown_ros.nodes._common.InputBatch` decides when a node processes what its
+:class:`~strapdown_ros.nodes.batching.InputBatch` decides when a node processes what its
 callbacks buffered: after a quiet spin (a 200 Hz cycle has arrived: processed at once) or when
 the oldest message has waited ``period_s`` (kHz input keeps coming: batches). Driven here with a
 fake ``spin`` that delivers scripted messages and advances nothing but the real clock.
@@ -14,7 +14,8 @@ import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from strapdown_ros.nodes._common import InputBatch, Pacer  # noqa: E402
+from strapdown_ros.nodes.batching import InputBatch  # noqa: E402
+from strapdown_ros.nodes.pacing import Pacer  # noqa: E402
 
 
 def _spinner(batch: InputBatch, arrivals: list[int]):

@@ -1,10 +1,10 @@
-"""``strapdown-sim run``: the live pipeline as processes, compared with ``generate`` (issue 6).
+"""``strapdown-sim run``: the live pipeline as processes, compared with ``generate``.
 
 1. ``run`` on a shortened ``default.yaml`` records every topic ``generate`` writes, with the
    same payloads byte for byte and zero messages lost.
 2. When a node fails, ``run`` stops the others, exits non-zero with the failing node's log, and
    leaves no process behind.
-3. Flow-controlled runs (``--rate-factor 20``, ``--unpaced``; issue 19) are lossless and
+3. Flow-controlled runs (``--rate-factor 20``, ``--unpaced``) are lossless and
    byte-identical to ``generate``, and print the throughput reached.
 """
 
@@ -15,9 +15,8 @@ import subprocess
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
-from node_testing import executable
+from node_testing import assert_recorded_as_generated, generate, run_live, sim
 
 from strapdown_ros.bag.reader import read_bag
 
@@ -48,40 +47,16 @@ def _scenario_copy(tmp_path: Path) -> Path:
 )
 def test_run_equals_generate_with_zero_loss(tmp_path, ros_env, rate_hz, duration_s) -> None:
     """The live pipeline records what generate writes, in real time. At 1 kHz for 20 s the
-    five processes must keep up on 2 cores (issue 6): the nodes of commit e621c84 (one message
-    at a time on the SingleThreadedExecutor) fell behind and this case lost 3 696 cycles of
-    every variation topic (checked by running this test against that commit)."""
+    five processes must keep up on 2 cores: nodes that take one message at a time on the
+    SingleThreadedExecutor fall behind and lose thousands of cycles of every variation topic
+    here (docs/benchmarks.md)."""
     scenario = _scenario_copy(tmp_path)
     gen, live = tmp_path / "generate", tmp_path / "run"
     common = ["--duration", str(duration_s), "--set", f"rate_hz={rate_hz}"]
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "generate", str(scenario), "--out", str(gen), "--quiet",
-         *common],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
-    env = dict(ros_env)
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "run", str(scenario), "--out", str(live), *common,
-         "--domain-id", env["ROS_DOMAIN_ID"]],
-        capture_output=True, text=True, timeout=240, env=env,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "zero loss" in proc.stdout, proc.stdout
-    a, b = read_bag(live, raw=True), read_bag(gen, raw=True)
-    assert set(a.topics) == set(b.topics)
-    assert any(t.startswith("/navigator/") for t in b.topics)
-    assert "/tf" in b.topics and "/tf_static" in b.topics  # TF recorded live too
-    for topic, data in b.topics.items():
-        got = [bytes(p) for p in a.topics[topic].payloads]
-        want = [bytes(p) for p in data.payloads]
-        assert len(got) == len(want), topic
-        if topic == "/tf":  # three publishers (reference, variation, navigator): any interleaving
-            got, want = sorted(got), sorted(want)
-            np.testing.assert_array_equal(
-                np.sort(a.topics[topic].log_time_ns), np.sort(data.log_time_ns)
-            )
-        assert got == want, topic
+    generate(scenario, gen, *common, timeout=120)
+    run_live(scenario, live, dict(ros_env), *common, timeout=240)
+    assert any(t.startswith("/navigator/") for t in read_bag(gen, raw=True).topics)
+    assert_recorded_as_generated(live, gen)
     time.sleep(0.5)
     assert not _own_processes(str(tmp_path)), _own_processes(str(tmp_path))
 
@@ -93,12 +68,7 @@ FLOW_DURATION_S = 30.0
 def generated_30s(tmp_path_factory) -> Path:
     """generate's bag of default.yaml shortened to FLOW_DURATION_S (200 Hz)."""
     gen = tmp_path_factory.mktemp("flow") / "generate"
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
-         "--duration", str(FLOW_DURATION_S)],
-        capture_output=True, text=True, timeout=180,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
+    generate(SCENARIO, gen, "--duration", FLOW_DURATION_S)
     return gen
 
 
@@ -110,32 +80,13 @@ def test_flow_controlled_run_is_lossless(tmp_path, ros_env, generated_30s, pace)
     1000); here the trajectory node must have waited for its consumers at least once."""
     scenario = _scenario_copy(tmp_path)
     live = tmp_path / "run"
-    env = dict(ros_env)
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "run", str(scenario), "--out", str(live),
-         "--duration", str(FLOW_DURATION_S), *pace, "--domain-id", env["ROS_DOMAIN_ID"]],
-        capture_output=True, text=True, timeout=300, env=env,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "zero loss" in proc.stdout, proc.stdout
+    proc = run_live(scenario, live, dict(ros_env), "--duration", str(FLOW_DURATION_S), *pace)
     assert "flow control" in proc.stderr and "x real time" in proc.stdout, proc.stdout
     throughput = next(line for line in proc.stdout.splitlines() if line.startswith("throughput"))
     assert "msgs/s recorded" in throughput and "flow control" in throughput, throughput
     log = (tmp_path / "run.logs" / "trajectory_node.log").read_text()
     assert "flow control: waited" in log, log
-    a, b = read_bag(live, raw=True), read_bag(generated_30s, raw=True)
-    assert set(a.topics) == set(b.topics)
-    assert "/tf" in b.topics and "/tf_static" in b.topics  # TF recorded live too
-    for topic, data in b.topics.items():
-        got = [bytes(p) for p in a.topics[topic].payloads]
-        want = [bytes(p) for p in data.payloads]
-        assert len(got) == len(want), topic
-        if topic == "/tf":  # three publishers (reference, variation, navigator): any interleaving
-            got, want = sorted(got), sorted(want)
-            np.testing.assert_array_equal(
-                np.sort(a.topics[topic].log_time_ns), np.sort(data.log_time_ns)
-            )
-        assert got == want, topic
+    assert_recorded_as_generated(live, generated_30s)
     time.sleep(0.5)
     assert not _own_processes(str(tmp_path)), _own_processes(str(tmp_path))
 
@@ -144,10 +95,9 @@ def test_failing_node_stops_the_pipeline(tmp_path, ros_env) -> None:
     """variation_node refuses Method 1 (exit 2): run exits 1 with that log, no orphans."""
     scenario = _scenario_copy(tmp_path)
     env = dict(ros_env)
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "run", str(scenario), "--out", str(tmp_path / "run"),
-         "--duration", "2", "--set", "variation.method=1", "--domain-id", env["ROS_DOMAIN_ID"]],
-        capture_output=True, text=True, timeout=180, env=env,
+    proc = sim(
+        "run", scenario, "--out", tmp_path / "run", "--duration", "2",
+        "--set", "variation.method=1", "--domain-id", env["ROS_DOMAIN_ID"], env=env,
     )  # fmt: skip
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "variation_node exited with status 2" in proc.stderr, proc.stderr
@@ -159,10 +109,7 @@ def test_failing_node_stops_the_pipeline(tmp_path, ros_env) -> None:
 def test_run_refuses_existing_output(tmp_path) -> None:
     out = tmp_path / "bag"
     out.mkdir()
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "run", str(SCENARIO), "--out", str(out), "--duration", "1"],
-        capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
+    proc = sim("run", SCENARIO, "--out", out, "--duration", "1", timeout=60)
     assert proc.returncode == 2 and "exists already" in proc.stderr
 
 
@@ -170,18 +117,10 @@ def test_replay_into_navigator_matches_offline(tmp_path, ros_env) -> None:
     """A generated bag's /variation/imu + /variation/odom played (paced, real time) into a live
     navigator_node: its recorded output equals the bag's own /navigator/* payloads."""
     gen, out = tmp_path / "generate", tmp_path / "replay"
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
-         "--duration", "3"],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
+    generate(SCENARIO, gen, "--duration", "3", timeout=120)
     env = dict(ros_env)
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "replay", str(gen), "--into", "navigator", "--out", str(out),
-         "--domain-id", env["ROS_DOMAIN_ID"]],
-        capture_output=True, text=True, timeout=180, env=env,
-    )  # fmt: skip
+    proc = sim("replay", gen, "--into", "navigator", "--out", out,
+               "--domain-id", env["ROS_DOMAIN_ID"], env=env)  # fmt: skip
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "identical to the offline navigator" in proc.stdout
     live, bag = read_bag(out, raw=True), read_bag(gen, raw=True)

@@ -9,12 +9,11 @@ on ``PYTHONPATH``, whose import fails.
 from __future__ import annotations
 
 import os
-import subprocess
 from pathlib import Path
 
 import pytest
 import yaml
-from node_testing import executable
+from node_testing import generate, run_live
 
 from strapdown_ros.bag.reader import read_bag
 
@@ -33,20 +32,8 @@ def test_run_without_tf2_msgs_records_generates_tf(tmp_path, ros_env) -> None:
         p for p in (str(shadow.parent), env.get("PYTHONPATH", "")) if p
     )
     gen, live = tmp_path / "generate", tmp_path / "run"
-    common = ["--duration", "2"]
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(gen), "--quiet",
-         *common],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
-    proc = subprocess.run(
-        [executable("strapdown-sim"), "run", str(SCENARIO), "--out", str(live), *common,
-         "--domain-id", env["ROS_DOMAIN_ID"]],
-        capture_output=True, text=True, timeout=300, env=env,
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "zero loss" in proc.stdout, proc.stdout
+    generate(SCENARIO, gen, "--duration", "2", timeout=120)
+    run_live(SCENARIO, live, env, "--duration", "2")
     logs = "".join(p.read_text() for p in Path(f"{live}.logs").glob("*.log"))
     for node in ("trajectory_node", "variation_node", "navigator_node"):
         assert f"[{node}]: live TF is off: tf2_msgs/msg/TFMessage is not importable" in logs

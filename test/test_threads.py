@@ -18,7 +18,7 @@ from strapdown_ros.core.trajectory.samples import (
     SamplesTrajectory,
     samples_from_arrays,
 )
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 N = threads.MIN_ROWS + 1001  # long enough to be split
 

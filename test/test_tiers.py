@@ -110,7 +110,7 @@ def test_marking_of_this_suite() -> None:
     reason = tiers.dds_reason(TEST_DIR / "test_pipeline.py", "anything", ["tmp_path", "ros_env"])
     assert reason == "uses the ros_env fixture"
     # through strapdown_ros: importing the nodes' helpers loads rclpy
-    chain = tiers._ros_chain("strapdown_ros.nodes._common")
+    chain = tiers._ros_chain("strapdown_ros.nodes.lifecycle")
     assert chain and chain[-1].startswith("rclpy"), chain
     assert tiers._ros_chain("strapdown_ros.generate") is None
 

@@ -13,7 +13,7 @@ from strapdown_ros.core.method2 import method2
 from strapdown_ros.core.rotations import rotvec_from_dcm
 from strapdown_ros.core.trajectory.base import local_to_e0
 from strapdown_ros.core.trajectory.coning import ConingTrajectory, lowest_altitude
-from strapdown_ros.stages.reference import build_trajectory
+from strapdown_ros.plan import build_trajectory
 
 INITIAL = {
     "latitude_deg": -23.2,

@@ -42,7 +42,7 @@ from strapdown_ros.core.trajectory.samples import (
     samples_from_arrays,
 )
 from strapdown_ros.inputs.samples import SamplesInputError, load_samples_csv
-from strapdown_ros.stages.reference import build_trajectory
+from strapdown_ros.plan import build_trajectory
 
 T = 120.0
 LAT0, LON0 = np.radians(45.0), np.radians(7.0)

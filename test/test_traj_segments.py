@@ -12,7 +12,7 @@ from strapdown_ros.core.rotations import euler_from_dcm, vee
 from strapdown_ros.core.trajectory.base import TrajectoryError
 from strapdown_ros.core.trajectory.latlon_path import LatLonPath
 from strapdown_ros.core.trajectory.segments import Segment, SegmentsTrajectory
-from strapdown_ros.stages.reference import build_trajectory
+from strapdown_ros.plan import build_trajectory
 
 INITIAL = {
     "latitude_deg": 45.0,
@@ -382,3 +382,60 @@ def test_core_errors_name_the_segment_attribute():
 def test_times_outside_the_trajectory_are_rejected(mixed):
     with pytest.raises(ValueError, match="times must lie"):
         mixed.local_truth(np.array([mixed.duration + 1.0]))
+
+
+# --- the latitude reach: a path certain to pass ±89.9° is refused before it is solved ----------
+
+A_WGS84, F_WGS84 = 6378137.0, 1.0 / 298.257223563  # defining constants of WGS-84
+
+
+def _crossing_time(lat0_deg: float, speed: float, alt: float) -> float:
+    """Time (s) a due-north (speed > 0) or due-south flight at constant speed and altitude
+    takes from ``lat0_deg`` to ±89.9°: ``t = ∫ (R_N(φ) + h) dφ / |v|``, with the textbook
+    meridian radius ``R_N = a (1 - e²) / (1 - e² sin² φ)^{3/2}`` (not the package's)."""
+    from scipy.integrate import quad
+
+    e2 = F_WGS84 * (2.0 - F_WGS84)
+
+    def r_n(phi: float) -> float:
+        return A_WGS84 * (1.0 - e2) / (1.0 - e2 * math.sin(phi) ** 2) ** 1.5
+
+    end = math.copysign(math.radians(89.9), speed)
+    arc, _ = quad(lambda phi: r_n(phi) + alt, math.radians(lat0_deg), end, epsabs=1e-6)
+    return arc / speed
+
+
+@pytest.mark.parametrize(("lat0", "speed"), [(45.0, 300.0), (-45.0, -300.0)])
+def test_latitude_reach_is_refused_before_the_path_is_solved(monkeypatch, lat0, speed):
+    """A 10⁶ s flight due north (south) passes the pole after about 5·10⁴ s: refused at once
+    (the whole-path solver is never started: it took 46 s on a 10⁶ s path), by a time no
+    earlier than the exact crossing and at most 2 % + one 20 s interval later (the bound
+    carries ±0.5 % of the distance flown for the unknown meridian radius)."""
+    import strapdown_ros.core.trajectory.segments as segments_module
+
+    def no_solve(*args, **kwargs):
+        raise AssertionError("the whole path was solved")
+
+    monkeypatch.setattr(segments_module, "LatLonPath", no_solve)
+    heading = 0.0 if speed > 0 else math.pi
+    with pytest.raises(TrajectoryError) as info:
+        SegmentsTrajectory(math.radians(lat0), 0.0, 1000.0, [speed, 0.0, 0.0],
+                           [0.0, 0.0, heading], [Segment(duration=1e6)])  # fmt: skip
+    assert info.value.where == ("segments", 0)
+    problem = info.value.problem
+    assert problem.startswith("latitude would exceed ±89.9° by t = "), problem
+    t_bad = float(problem.removeprefix("latitude would exceed ±89.9° by t = ").removesuffix(" s"))
+    t_cross = _crossing_time(lat0, speed, 1000.0)
+    assert t_cross <= t_bad <= 1.02 * t_cross + 20.0, (t_cross, t_bad)
+
+
+def test_latitude_reach_lets_a_path_that_turns_back_pass():
+    """From 89.0° north 500 s at 100 m/s, a 180° turn, 600 s south: the speeds alone could
+    carry the latitude past the limit (so the reach is integrated), the path peaks near 89.5°
+    and is built."""
+    segments = [{"duration_s": 500}, {"duration_s": 60, "heading_rate_dps": 3.0},
+                {"duration_s": 600, "transition_s": 1}]  # fmt: skip
+    traj = build(dict(INITIAL, latitude_deg=89.0, velocity_ned_mps=[100.0, 0.0, 0.0],
+                      attitude_rph_deg=[0.0, 0.0, 0.0]), segments)  # fmt: skip
+    lat = np.degrees(traj.local_truth(np.linspace(0.0, traj.duration, 2001)).lat)
+    assert 89.4 < lat.max() < 89.9

@@ -16,8 +16,6 @@ import os
 import pickle
 import re
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -26,15 +24,13 @@ import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, bitwise_equal, executable, padded, scenario_without_tf  # noqa: E402
+import node_testing as nt  # noqa: E402
 
 from strapdown_ros.bag import cdr  # noqa: E402
-from strapdown_ros.bag.reader import read_bag  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 # The node's own streams: no TF/map topics and no aiding sensors (aiding_node's, tested apart).
-SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml", aiding=False)
-RECORDER = Path(__file__).resolve().parent / "ros_helpers" / "raw_recorder.py"
+SCENARIO = nt.scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml", aiding=False)
 DURATION_S = 3.0
 TOPICS = {
     "/reference/imu": "sensor_msgs/msg/Imu",
@@ -50,51 +46,22 @@ TIMEOUT_S = 60.0
 def bag(tmp_path_factory):
     """The bag of ``strapdown-sim generate`` for the scenario the node runs (with /clock)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [
-        executable("strapdown-sim"),
-        "generate",
-        str(SCENARIO),
-        "--out",
-        str(out),
-        "--duration",
-        str(DURATION_S),
-        "--set",
-        "recording.clock=true",
-        "--set",
-        "variation=null",  # the reference streams only: what trajectory_node publishes
-        "--set",
-        "navigator=null",
-        "--set",
-        "imu_errors=null",
-        "--quiet",
-    ]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    contents = read_bag(out, raw=True)
+    # the reference streams only: what trajectory_node publishes
+    overrides = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null"]
+    contents = nt.generated(SCENARIO, out, DURATION_S, overrides, timeout=120)
     assert {t: len(d.payloads) for t, d in contents.topics.items()} == COUNTS
     return contents
 
 
-def _node_args(*params: str) -> list[str]:
-    args = [executable("trajectory_node"), "--ros-args"]
-    for p in params:
-        args += ["-p", p]
-    return args
-
-
 def _record_and_run(
-    procs: list[Proc], ros_env, tmp_path: Path, counts: dict[str, int], *params: str
-) -> tuple[dict, Proc]:
+    procs: list[nt.Proc], ros_env, tmp_path: Path, counts: dict[str, int], *params: str
+) -> tuple[dict, nt.Proc]:
     """Run the recorder and the node; return the recording and the node process."""
     deadline = time.monotonic() + TIMEOUT_S
-    out = tmp_path / "recording.pkl"
-    rec_args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
-    for topic, msgtype in TOPICS.items():
-        rec_args += ["--topic", f"{topic}={msgtype}={counts[topic]}"]
-    recorder = Proc(rec_args, ros_env, tmp_path, "recorder")
-    procs.append(recorder)
-    node = Proc(_node_args(*params), ros_env, tmp_path, "trajectory_node")
-    procs.append(node)
+    topics = [(topic, msgtype, counts[topic]) for topic, msgtype in TOPICS.items()]
+    recorder, out = nt.raw_recorder(procs, ros_env, tmp_path, topics, TIMEOUT_S - 5)
+    node = nt.launch(procs, nt.node_args("trajectory_node", *params), ros_env, tmp_path,
+                     "trajectory_node")  # fmt: skip
     node_rc = node.wait(deadline)
     rec_rc = recorder.wait(deadline)
     assert node_rc == 0, node.describe() + recorder.describe()
@@ -152,10 +119,10 @@ def _compare(recording: dict, bag, topics: list[str]) -> None:
         want = bag.topics[topic]
         assert len(got) == len(want.payloads), topic
         pairs = zip(got, want.payloads, strict=True)
-        first_bad = next((i for i, (g, w) in enumerate(pairs) if g != padded(w)), None)
+        first_bad = next((i for i, (g, w) in enumerate(pairs) if g != nt.padded(w)), None)
         assert first_bad is None, f"{topic}: payload {first_bad} differs from the bag"
         decoded = cdr.deserialize(want.msgtype, got)
-        assert bitwise_equal(decoded, want.fields), topic
+        assert nt.bitwise_equal(decoded, want.fields), topic
         _check_rclpy_decoding(topic, got, want.fields)
 
 
@@ -223,13 +190,9 @@ def test_paced_wall_time_run(bag, procs, ros_env, tmp_path):
     ids=["missing", "no-file", "bad-value", "bad-segment", "too-long", "time-source", "qos"],
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
-    proc = subprocess.run(
-        _node_args(*params), env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
-    )
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 2, output
+    rc, output = nt.node_exit("trajectory_node", ros_env, *params)
+    assert rc == 2, output
     assert re.search(expected, output), output
-    assert "Traceback" not in output, output
 
 
 def test_no_subscriber_within_timeout_exits_1(ros_env):
@@ -242,22 +205,19 @@ def test_no_subscriber_within_timeout_exits_1(ros_env):
         "wait_for_subscribers:=1",
         "wait_timeout_s:=0.5",
     ]
-    proc = subprocess.run(
-        _node_args(*params), env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO
-    )
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 1, output
+    rc, output = nt.node_exit("trajectory_node", ros_env, *params)
+    assert rc == 1, output
     assert "timeout after 0.5 s waiting for subscriptions" in output, output
     assert "(has 0, wants 1)" in output, output
-    assert "Traceback" not in output, output
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_signal_stops_cleanly(sig, procs, ros_env, tmp_path):
     deadline = time.monotonic() + TIMEOUT_S
     topic = f"/strapdown_test/signal_imu_{os.getpid()}"
-    node = Proc(
-        _node_args(
+    node = nt.Proc(
+        nt.node_args(
+            "trajectory_node",
             f"scenario:={SCENARIO}",
             "duration_s:=60",
             "rate_factor:=1",

@@ -67,6 +67,12 @@ CASES: dict[str, tuple[object, str]] = {
         "trajectory.segments[1]",
     ),
     "duration beyond the trajectory": (_with("duration_s", 30), "duration_s"),
+    "latitude past the pole": (
+        _with("trajectory.segments", [{"duration_s": 1.0e6}]), "trajectory.segments[0]"
+    ),
+    "trajectory longer than 1e7 s": (
+        _with("trajectory.segments", [{"duration_s": 2.0e7}]), "trajectory.segments"
+    ),
     "unknown variation key": ({**GOOD, "variation": {"lever_arm": [1, 0, 0]}}, "variation"),
     "variation method 3": ({**GOOD, "variation": {**VARIATION, "method": 3}}, "variation.method"),
     "negative scan rate": (
@@ -98,6 +104,8 @@ CASES: dict[str, tuple[object, str]] = {
     "not YAML": (b"rate_hz: [1, 2\n", ""),
     "not UTF-8 text": (b"rate_hz: 100\nname: \xff\xfe\n", ""),
     "binary file": (bytes(range(256)), ""),
+    "nested 1000 levels deep": (b"rate_hz: " + b"[" * 1000 + b"]" * 1000 + b"\n", ""),
+    "recursive alias": (b"rate_hz: &r [*r]\n", ""),
 }  # fmt: skip
 
 

@@ -12,7 +12,7 @@ from strapdown_ros.core.variation import (
     generate_variation,
     variation_constraints,
 )
-from strapdown_ros.stages.reference import generate_reference
+from strapdown_ros.stages.trajectory import generate_reference
 
 SCENARIO = {
     "rate_hz": 200,

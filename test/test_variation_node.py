@@ -20,11 +20,8 @@ chunking of decoded or raw input. Every wait has a timeout; children are killed 
 from __future__ import annotations
 
 import os
-import pickle
 import re
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -33,11 +30,10 @@ import pytest
 
 pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
 
-from node_testing import Proc, bitwise_equal, executable, padded, scenario_without_tf  # noqa: E402
+import node_testing as nt  # noqa: E402
 
 from strapdown_ros.bag import cdr  # noqa: E402
 from strapdown_ros.bag.batches import Batch, merge_order, stream_batches  # noqa: E402
-from strapdown_ros.bag.reader import read_bag  # noqa: E402
 from strapdown_ros.config import load_scenario  # noqa: E402
 from strapdown_ros.core.exactness import stream_residuals  # noqa: E402
 from strapdown_ros.core.variation import OffsetArrays, _window, generate_variation  # noqa: E402
@@ -51,10 +47,7 @@ from strapdown_ros.stages.variation import (  # noqa: E402
 )
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
-HELPERS = Path(__file__).resolve().parent / "ros_helpers"
-RECORDER = HELPERS / "raw_recorder.py"
-REPLAY = HELPERS / "reference_replay.py"
+SCENARIO = nt.scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 DURATION_S = 2.0
 CYCLES = 400  # reference cycles 0..400 at 200 Hz
 #: A variation with a lever arm, a bending sinusoid and a scan (keys:
@@ -86,46 +79,24 @@ def scenario():
 def bag(tmp_path_factory):
     """``strapdown-sim generate`` of the scenario with the variation: (path, contents)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
-    cmd = [executable("strapdown-sim"), "generate", str(SCENARIO), "--out", str(out)]
-    cmd += ["--duration", str(DURATION_S), "--set", VARIATION, "--quiet"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    contents = read_bag(out, raw=True)
+    contents = nt.generated(SCENARIO, out, DURATION_S, [VARIATION], timeout=120)
     counts = {t: len(d.payloads) for t, d in contents.topics.items()}
     assert counts["/reference/odom"] == CYCLES + 1
     assert counts["/variation/odom"] == CYCLES - 1 and counts["/variation/imu"] == CYCLES - 2
     return out, contents
 
 
-def _params(*params: str) -> list[str]:
-    args = []
-    for p in params:
-        args += ["-p", p]
-    return args
+def _variation_node(procs, env, tmp_path, *params: str) -> nt.Proc:
+    args = nt.node_args(
+        "variation_node", f"scenario:={SCENARIO}", f"overrides:=['{VARIATION}']",
+        f"duration_s:={DURATION_S}", "wait_for_subscribers:=1", *params,
+    )  # fmt: skip
+    return nt.launch(procs, args, env, tmp_path, "variation_node")
 
 
-def _variation_node(procs, env, tmp_path, *params: str) -> Proc:
-    args = [executable("variation_node"), "--ros-args"]
-    args += _params(
-        f"scenario:={SCENARIO}",
-        f"overrides:=['{VARIATION}']",
-        f"duration_s:={DURATION_S}",
-        "wait_for_subscribers:=1",
-        *params,
-    )
-    node = Proc(args, env, tmp_path, "variation_node")
-    procs.append(node)
-    return node
-
-
-def _recorder(procs, env, tmp_path, counts: dict[str, int], extra=()) -> tuple[Proc, Path]:
-    out = tmp_path / "recording.pkl"
-    args = [sys.executable, str(RECORDER), "--out", str(out), "--timeout", str(TIMEOUT_S - 5)]
-    for topic, msgtype in [*OUTPUTS.items(), *extra]:
-        args += ["--topic", f"{topic}={msgtype}={counts[topic]}"]
-    rec = Proc(args, env, tmp_path, "recorder")
-    procs.append(rec)
-    return rec, out
+def _recorder(procs, env, tmp_path, counts: dict[str, int], extra=()) -> tuple[nt.Proc, Path]:
+    topics = [(topic, msgtype, counts[topic]) for topic, msgtype in [*OUTPUTS.items(), *extra]]
+    return nt.raw_recorder(procs, env, tmp_path, topics, TIMEOUT_S - 5)
 
 
 def _stamp_of(payload: bytes) -> int:
@@ -180,34 +151,22 @@ def test_live_pipeline_equals_generate(bag, procs, ros_env, tmp_path):
     rec, out = _recorder(procs, ros_env, tmp_path, counts, [("/reference/fix", cdr.NAVSATFIX)])
     node = _variation_node(procs, ros_env, tmp_path)
     node.wait_for(r"subscribed to /reference/imu", deadline)
-    traj = Proc(
-        [executable("trajectory_node"), "--ros-args"]
-        + _params(
-            f"scenario:={SCENARIO}",
-            f"duration_s:={DURATION_S}",
-            "rate_factor:=1.0",
-            "time_source:=wall",
-            "wait_for_subscribers:=1",
-        ),
-        ros_env,
-        tmp_path,
-        "trajectory_node",
-    )
-    procs.append(traj)
-    assert traj.wait(deadline) == 0, traj.describe()
-    assert node.wait(deadline) == 0, node.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
-    for p in (traj, node):
-        assert "Traceback" not in p.output and "WARN" not in p.output, p.describe()
-    with open(out, "rb") as f:
-        recording = pickle.load(f)
+    args = nt.node_args(
+        "trajectory_node", f"scenario:={SCENARIO}", f"duration_s:={DURATION_S}",
+        "rate_factor:=1.0", "time_source:=wall", "wait_for_subscribers:=1",
+    )  # fmt: skip
+    traj = nt.launch(procs, args, ros_env, tmp_path, "trajectory_node")
+    nt.wait_ok(deadline, traj, node, rec)
+    nt.assert_clean(traj, node, warnings=False)
+    recording = nt.load_recording(out)
 
     for topic in OUTPUTS:
         got, want = recording["topics"][topic], contents.topics[topic]
         assert len(got) == len(want.payloads), topic
-        bad = [i for i, (g, w) in enumerate(zip(got, want.payloads, strict=True)) if g != padded(w)]
+        pairs = enumerate(zip(got, want.payloads, strict=True))
+        bad = [i for i, (g, w) in pairs if g != nt.padded(w)]
         assert not bad, f"{topic}: payloads {bad[:5]}... differ from the bag"
-        assert bitwise_equal(cdr.deserialize(want.msgtype, got), want.fields), topic
+        assert nt.bitwise_equal(cdr.deserialize(want.msgtype, got), want.fields), topic
     assert f"published {sum(counts[t] for t in OUTPUTS)} messages" in node.output
 
     # Latency: variation cycle m goes out when reference cycle m+1 or m+2 has arrived.
@@ -262,35 +221,16 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
     rec, out = _recorder(procs, ros_env, tmp_path, counts)
     node = _variation_node(procs, ros_env, tmp_path, "idle_timeout_s:=3.0")
     node.wait_for(r"subscribed to /reference/imu", deadline)
-    replay = Proc(
-        [
-            sys.executable,
-            str(REPLAY),
-            "--bag",
-            str(path),
-            "--drop",
-            str(DROP),
-            "--swap",
-            str(SWAP),
-            "--interval",
-            "0.001",
-            "--timeout",
-            str(TIMEOUT_S - 10),
-        ],
-        ros_env,
-        tmp_path,
-        "replay",
-    )
-    procs.append(replay)
-    assert replay.wait(deadline) == 0, replay.describe()
-    assert node.wait(deadline) == 0, node.describe() + rec.describe()
-    assert rec.wait(deadline) == 0, rec.describe() + node.describe()
+    replay = nt.reference_replay(
+        procs, ros_env, tmp_path, path, "--drop", str(DROP), "--swap", str(SWAP),
+        "--interval", "0.001", "--timeout", str(TIMEOUT_S - 10),
+    )  # fmt: skip
+    nt.wait_ok(deadline, replay, node, rec)
+    nt.assert_clean(node)
     log = node.output
-    assert "Traceback" not in log, node.describe()
 
     def st(m: int) -> str:
-        t = scenario.start_time_ns + m * scenario.period_ns
-        return re.escape(f"{t // 1_000_000_000}.{t % 1_000_000_000:09d}")
+        return nt.stamp_regex(scenario.start_time_ns, scenario.period_ns, m)
 
     for topic in ("/reference/odom", "/reference/imu"):
         assert re.search(
@@ -303,8 +243,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
     assert re.search(rf"WARN.*restarting the solution at cycle {SWAP + 1} ", log), log
     assert "3 run(s)" in log, log
 
-    with open(out, "rb") as f:
-        recording = pickle.load(f)
+    recording = nt.load_recording(out)
     reference = _reference(contents, scenario)
     for k, (first, last) in enumerate(runs):
         want = (
@@ -330,7 +269,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
             ]
             assert [_cycle(scenario, _stamp_of(p)) for p in got] == list(range(lo, last + 1))
             for p in got:
-                assert p == padded(want[topic][_stamp_of(p)]), (k, topic, _stamp_of(p))
+                assert p == nt.padded(want[topic][_stamp_of(p)]), (k, topic, _stamp_of(p))
         if k == 0:
             continue
         # The restarted run on its own obeys the exactness rule (docs/interface.md §3).
@@ -402,12 +341,9 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
     ids=["missing", "no-variation", "method-3", "method-1", "lever-arm", "qos", "same-topic"],
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
-    args = [executable("variation_node"), "--ros-args", *_params(*params)]
-    proc = subprocess.run(args, env=ros_env, capture_output=True, text=True, timeout=60, cwd=REPO)
-    output = proc.stdout + proc.stderr
-    assert proc.returncode == 2, output
+    rc, output = nt.node_exit("variation_node", ros_env, *params)
+    assert rc == 2, output
     assert re.search(expected, output), output
-    assert "Traceback" not in output, output
 
 
 # ---------------------------------------------------------------------------------------------
@@ -423,11 +359,22 @@ class _Log:
         self.lines.append(msg)
 
 
-def _feed(solver, items) -> dict[str, list[bytes]]:
+def _feed(solver, items, every: int = 0, windows: list[int] | None = None):
+    """The outputs per topic of feeding ``items`` one by one; with ``every``, solved only every
+    ``every`` messages and at the end (``solve=False``, then ``advance``), the windows solved
+    so far appended to ``windows`` after each message."""
     got: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
-    for kind, payload in items:
-        for topic, _, data in solver.on_message(kind, payload):
+    for i, (kind, payload) in enumerate(items):
+        if not every:
+            out = solver.on_message(kind, payload)
+        else:
+            out = solver.on_message(kind, payload, solve=False)
+            if (i + 1) % every == 0 or i + 1 == len(items):
+                out += solver.advance()
+        for topic, _, data in out:
             got[topic].append(data)
+        if windows is not None:
+            windows.append(len(solver.timing.wall))
     return got
 
 
@@ -471,15 +418,8 @@ def test_solver_catching_up_in_long_windows_equals_generate(bag, scenario, every
     _, contents = bag
     items = _inputs(contents)
     solver, warn, error = _solver(scenario)
-    got: dict[str, list[bytes]] = {t: [] for t in OUTPUTS}
-    windows = []
-    for i, (kind, payload) in enumerate(items):
-        out = solver.on_message(kind, payload, solve=False)
-        if (i + 1) % every == 0 or i + 1 == len(items):
-            out += solver.advance()
-        for topic, _, data in out:
-            got[topic].append(data)
-        windows.append(len(solver.timing.wall))
+    windows: list[int] = []
+    got = _feed(solver, items, every, windows)
     for topic in OUTPUTS:
         assert got[topic] == [bytes(p) for p in contents.topics[topic].payloads], topic
     assert solver.finished and solver.runs == 1 and not error.lines and not warn.lines
@@ -490,14 +430,7 @@ def test_solver_catching_up_in_long_windows_equals_generate(bag, scenario, every
     reference, _, _ = _solver(scenario)
     want = _feed(reference, gap)
     deferred, _, _ = _solver(scenario)
-    got = {t: [] for t in OUTPUTS}
-    for i, (kind, payload) in enumerate(gap):
-        out = deferred.on_message(kind, payload, solve=False)
-        if (i + 1) % every == 0 or i + 1 == len(gap):
-            out += deferred.advance()
-        for topic, _, data in out:
-            got[topic].append(data)
-    assert got == want
+    assert _feed(deferred, gap, every) == want
 
 
 @pytest.mark.parametrize("size", [1, 6, 50])

@@ -6,7 +6,7 @@ Loaded by ``test/conftest.py`` (its hooks are re-exported there); see docs/devel
 Marking (``pytest_collection_modifyitems``): a test is ``dds`` when it uses the ``ros_env`` or
 ``procs`` fixture (directly or through another fixture), when its module imports rclpy at module
 level (``pytest.importorskip("rclpy")`` counts) or imports a module that does (e.g.
-``strapdown_ros.nodes._common``; followed through ``strapdown_ros`` and the helpers in ``test/``
+``strapdown_ros.nodes.lifecycle``; followed through ``strapdown_ros`` and the helpers in ``test/``
 with the static import graph of ``import_graph.py``), or when the test function, a fixture
 defined in its module or a module-level function either of them calls imports such a module.
 

@@ -26,24 +26,11 @@ import functools
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from dataclasses import fields as dataclass_fields
 
 import numpy as np
 from numpy.typing import NDArray
 
-from strapdown_ros.messages import (
-    ClockFields,
-    FluidPressureFields,
-    ImuFields,
-    MagneticFieldFields,
-    NavSatFixFields,
-    OdometryFields,
-    QuaternionStampedFields,
-    TFMessageFields,
-    TwistWithCovarianceStampedFields,
-    Vector3StampedFields,
-    stamps_to_sec_nanosec,
-)
+from strapdown_ros import messages as msg
 
 __all__ = [
     "CLOCK",
@@ -219,7 +206,7 @@ def _stamps_from(arr: np.ndarray) -> NDArray[np.int64]:
 
 
 def _put_stamps(arr: np.ndarray, stamps_ns: NDArray[np.int64]) -> None:
-    sec, nsec = stamps_to_sec_nanosec(stamps_ns)
+    sec, nsec = msg.stamps_to_sec_nanosec(stamps_ns)
     arr["sec"] = sec
     arr["nanosec"] = nsec
 
@@ -240,120 +227,90 @@ def _put(dst: np.ndarray, src: object) -> None:
 # The pack functions write into zero-initialized rows (see _blank).
 
 
-def _pack_imu(arr: np.ndarray, f: ImuFields) -> None:
-    d = arr["d"]
-    _put(d[:, 0:4], f.orientation)
-    _put(d[:, 4:13], f.orientation_covariance)
-    _put(d[:, 13:16], f.angular_velocity)
-    _put(d[:, 16:25], f.angular_velocity_covariance)
-    _put(d[:, 25:28], f.linear_acceleration)
-    _put(d[:, 28:37], f.linear_acceleration_covariance)
+@dataclass(frozen=True)
+class Part:
+    """Where one field of a container lies in a layout: item ``item``, and for a float64 block
+    the columns ``cols`` (``(start, stop)``, or one column index for a 1-D field; None: the
+    whole item). ``dtype``: the container's dtype of a typed (non-float64) item."""
+
+    field: str
+    item: str = "d"
+    cols: tuple[int, int] | int | None = None
+    dtype: type | None = None
 
 
-def _unpack_imu(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> ImuFields:
-    d = np.ascontiguousarray(arr["d"])
-    return ImuFields(
-        t, s[0], d[:, 0:4], d[:, 4:13], d[:, 13:16], d[:, 16:25], d[:, 25:28], d[:, 28:37]
+def _part_view(arr: np.ndarray, part: Part) -> np.ndarray:
+    """The bytes of ``part`` in structured rows ``arr`` (a view, for writing)."""
+    view = arr[part.item]
+    if isinstance(part.cols, tuple):
+        return view[:, part.cols[0] : part.cols[1]]
+    return view if part.cols is None else view[:, part.cols]
+
+
+def _pack_parts(parts: tuple[Part, ...], arr: np.ndarray, f: object) -> None:
+    """Write each part's field of ``f`` into ``arr`` (:func:`_put`: zero constants skipped)."""
+    for part in parts:
+        _put(_part_view(arr, part), getattr(f, part.field))
+
+
+def _unpack_parts(
+    fields_type: type,
+    strings: tuple[str, ...],
+    parts: tuple[Part, ...],
+    arr: np.ndarray,
+    t: NDArray[np.int64],
+    s: tuple[str, ...],
+) -> object:
+    """The container of rows ``arr``: stamps ``t``, string fields ``strings`` = ``s``, and every
+    part as a contiguous array of its own (1-D fields and typed items copied)."""
+    blocks: dict[str, np.ndarray] = {}
+    values: dict[str, object] = {"stamps_ns": t, **dict(zip(strings, s, strict=True))}
+    for part in parts:
+        if part.dtype is not None:
+            values[part.field] = arr[part.item].astype(part.dtype)
+            continue
+        if part.item not in blocks:
+            blocks[part.item] = np.ascontiguousarray(arr[part.item])
+        d = blocks[part.item]
+        if isinstance(part.cols, tuple):
+            values[part.field] = d[:, part.cols[0] : part.cols[1]]
+        else:
+            values[part.field] = d if part.cols is None else d[:, part.cols].copy()
+    return fields_type(**values)
+
+
+def _fixed(
+    msgtype: str,
+    fields_type: type,
+    strings: tuple[str, ...],
+    items: tuple[Item, ...],
+    parts: tuple[Part, ...],
+) -> Codec:
+    """The codec of a type with one item list: the string fields ``strings`` (in item order)
+    and the other fields at ``parts``."""
+    return Codec(
+        msgtype,
+        fields_type,
+        items,
+        lambda f: tuple(getattr(f, name) for name in strings),
+        functools.partial(_pack_parts, parts),
+        functools.partial(_unpack_parts, fields_type, strings, parts),
     )
 
 
-def _pack_odom(arr: np.ndarray, f: OdometryFields) -> None:
-    d = arr["d"]
-    _put(d[:, 0:3], f.position)
-    _put(d[:, 3:7], f.orientation)
-    _put(d[:, 7:43], f.pose_covariance)
-    _put(d[:, 43:46], f.twist_linear)
-    _put(d[:, 46:49], f.twist_angular)
-    _put(d[:, 49:85], f.twist_covariance)
-
-
-def _unpack_odom(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> OdometryFields:
-    d = np.ascontiguousarray(arr["d"])
-    return OdometryFields(
-        t, s[0], s[1], d[:, 0:3], d[:, 3:7], d[:, 7:43], d[:, 43:46], d[:, 46:49], d[:, 49:85]
-    )
-
-
-def _pack_fix(arr: np.ndarray, f: NavSatFixFields) -> None:
-    _put(arr["status"], f.status)
-    _put(arr["service"], f.service)
-    d = arr["d"]
-    d[:, 0] = f.latitude
-    d[:, 1] = f.longitude
-    d[:, 2] = f.altitude
-    _put(d[:, 3:12], f.position_covariance)
-    _put(arr["covariance_type"], f.position_covariance_type)
-
-
-def _unpack_fix(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> NavSatFixFields:
-    d = np.ascontiguousarray(arr["d"])
-    return NavSatFixFields(
-        t,
-        s[0],
-        arr["status"].astype(np.int8),
-        arr["service"].astype(np.uint16),
-        d[:, 0].copy(),
-        d[:, 1].copy(),
-        d[:, 2].copy(),
-        d[:, 3:12],
-        arr["covariance_type"].astype(np.uint8),
-    )
-
-
-def _pack_vec(arr: np.ndarray, f: Vector3StampedFields) -> None:
-    arr["d"] = f.vector
-
-
-def _unpack_vec(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> Vector3StampedFields:
-    return Vector3StampedFields(t, s[0], np.ascontiguousarray(arr["d"]))
-
-
-def _pack_twist(arr: np.ndarray, f: TwistWithCovarianceStampedFields) -> None:
-    d = arr["d"]
-    _put(d[:, 0:3], f.linear)
-    _put(d[:, 3:6], f.angular)
-    _put(d[:, 6:42], f.covariance)
-
-
-def _unpack_twist(
-    arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]
-) -> TwistWithCovarianceStampedFields:
-    d = np.ascontiguousarray(arr["d"])
-    return TwistWithCovarianceStampedFields(t, s[0], d[:, 0:3], d[:, 3:6], d[:, 6:42])
-
-
-def _pack_pressure(arr: np.ndarray, f: FluidPressureFields) -> None:
-    d = arr["d"]
-    d[:, 0] = f.fluid_pressure
-    d[:, 1] = f.variance
-
-
-def _unpack_pressure(
-    arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]
-) -> FluidPressureFields:
-    d = np.ascontiguousarray(arr["d"])
-    return FluidPressureFields(t, s[0], d[:, 0].copy(), d[:, 1].copy())
-
-
-def _pack_mag(arr: np.ndarray, f: MagneticFieldFields) -> None:
-    d = arr["d"]
-    _put(d[:, 0:3], f.magnetic_field)
-    _put(d[:, 3:12], f.magnetic_field_covariance)
-
-
-def _unpack_mag(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> MagneticFieldFields:
-    d = np.ascontiguousarray(arr["d"])
-    return MagneticFieldFields(t, s[0], d[:, 0:3], d[:, 3:12])
-
-
-def _pack_quat(arr: np.ndarray, f: QuaternionStampedFields) -> None:
-    arr["d"] = f.quaternion
-
-
-def _unpack_quat(
-    arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]
-) -> QuaternionStampedFields:
-    return QuaternionStampedFields(t, s[0], np.ascontiguousarray(arr["d"]))
+def _float_block(
+    msgtype: str, fields_type: type, strings: tuple[str, ...], *widths: tuple[str, int]
+) -> Codec:
+    """The codec of a header type whose fields follow the strings as one float64 block ``d``:
+    ``widths`` are (field, columns) in order, 0 columns meaning a 1-D field (one column)."""
+    parts, start = [], 0
+    for name, width in widths:
+        parts.append(Part(name, cols=start if width == 0 else (start, start + width)))
+        start += max(width, 1)
+    items = (*_STAMP, *((name, "str", 1) for name in strings))
+    if start:
+        items += (("d", "<f8", start),)
+    return _fixed(msgtype, fields_type, strings, items, tuple(parts))
 
 
 def _tf_items(k: int) -> tuple[Item, ...]:
@@ -386,14 +343,14 @@ def _tf_items_of_payload(payload: bytes | memoryview) -> tuple[Item, ...]:
     return _tf_items(int(k))
 
 
-def _tf_strings(f: TFMessageFields) -> tuple[str, ...]:
+def _tf_strings(f: msg.TFMessageFields) -> tuple[str, ...]:
     return tuple(s for pair in zip(f.frame_ids, f.child_frame_ids, strict=True) for s in pair)
 
 
-def _pack_tf(arr: np.ndarray, f: TFMessageFields) -> None:
+def _pack_tf(arr: np.ndarray, f: msg.TFMessageFields) -> None:
     k = len(f.frame_ids)
     arr["count"] = k
-    sec, nsec = stamps_to_sec_nanosec(f.stamps_ns)
+    sec, nsec = msg.stamps_to_sec_nanosec(f.stamps_ns)
     for i in range(k):
         if i:
             arr[f"sec{i}"] = sec
@@ -403,7 +360,7 @@ def _pack_tf(arr: np.ndarray, f: TFMessageFields) -> None:
         d[:, 3:7] = f.rotation[:, i]
 
 
-def _unpack_tf(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> TFMessageFields:
+def _unpack_tf(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> msg.TFMessageFields:
     k = len(s) // 2
     n = t.shape[0]
     tr = np.empty((n, k, 3))
@@ -412,94 +369,58 @@ def _unpack_tf(arr: np.ndarray, t: NDArray[np.int64], s: tuple[str, ...]) -> TFM
         d = arr[f"d{i}"]
         tr[:, i] = d[:, 0:3]
         rot[:, i] = d[:, 3:7]
-    return TFMessageFields(t, tuple(s[0::2]), tuple(s[1::2]), tr, rot)
+    return msg.TFMessageFields(t, tuple(s[0::2]), tuple(s[1::2]), tr, rot)
 
 
 MSGTYPES: dict[str, Codec] = {
-    IMU: Codec(
-        IMU,
-        ImuFields,
-        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 37)),
-        lambda f: (f.frame_id,),
-        _pack_imu,
-        _unpack_imu,  # type: ignore[attr-defined]
+    IMU: _float_block(
+        IMU, msg.ImuFields, ("frame_id",),
+        ("orientation", 4), ("orientation_covariance", 9),
+        ("angular_velocity", 3), ("angular_velocity_covariance", 9),
+        ("linear_acceleration", 3), ("linear_acceleration_covariance", 9),
     ),
-    ODOMETRY: Codec(
-        ODOMETRY,
-        OdometryFields,
-        (*_STAMP, ("frame_id", "str", 1), ("child_frame_id", "str", 1), ("d", "<f8", 85)),
-        lambda f: (f.frame_id, f.child_frame_id),
-        _pack_odom,
-        _unpack_odom,  # type: ignore
+    ODOMETRY: _float_block(
+        ODOMETRY, msg.OdometryFields, ("frame_id", "child_frame_id"),
+        ("position", 3), ("orientation", 4), ("pose_covariance", 36),
+        ("twist_linear", 3), ("twist_angular", 3), ("twist_covariance", 36),
     ),
-    NAVSATFIX: Codec(
-        NAVSATFIX,
-        NavSatFixFields,
+    NAVSATFIX: _fixed(
+        NAVSATFIX, msg.NavSatFixFields, ("frame_id",),
         (
-            *_STAMP,
-            ("frame_id", "str", 1),
-            ("status", "<i1", 1),
-            ("service", "<u2", 1),
-            ("d", "<f8", 12),
-            ("covariance_type", "<u1", 1),
+            *_STAMP, ("frame_id", "str", 1), ("status", "<i1", 1), ("service", "<u2", 1),
+            ("d", "<f8", 12), ("covariance_type", "<u1", 1),
         ),
-        lambda f: (f.frame_id,),
-        _pack_fix,
-        _unpack_fix,  # type: ignore[attr-defined]
+        (
+            Part("status", "status", dtype=np.int8), Part("service", "service", dtype=np.uint16),
+            Part("latitude", cols=0), Part("longitude", cols=1), Part("altitude", cols=2),
+            Part("position_covariance", cols=(3, 12)),
+            Part("position_covariance_type", "covariance_type", dtype=np.uint8),
+        ),
     ),
-    CLOCK: Codec(
-        CLOCK,
-        ClockFields,
-        tuple(_STAMP),
-        lambda f: (),
-        lambda arr, f: None,
-        lambda arr, t, s: ClockFields(t),
+    CLOCK: _float_block(CLOCK, msg.ClockFields, ()),
+    VECTOR3_STAMPED: _float_block(
+        VECTOR3_STAMPED, msg.Vector3StampedFields, ("frame_id",), ("vector", 3)
     ),
-    VECTOR3_STAMPED: Codec(
-        VECTOR3_STAMPED,
-        Vector3StampedFields,
-        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 3)),
-        lambda f: (f.frame_id,),
-        _pack_vec,
-        _unpack_vec,  # type: ignore[attr-defined]
+    # aiding sensors
+    TWIST_WITH_COVARIANCE_STAMPED: _float_block(
+        TWIST_WITH_COVARIANCE_STAMPED, msg.TwistWithCovarianceStampedFields, ("frame_id",),
+        ("linear", 3), ("angular", 3), ("covariance", 36),
     ),
-    # aiding sensors (issue 16)
-    TWIST_WITH_COVARIANCE_STAMPED: Codec(
-        TWIST_WITH_COVARIANCE_STAMPED,
-        TwistWithCovarianceStampedFields,
-        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 42)),
-        lambda f: (f.frame_id,),
-        _pack_twist,
-        _unpack_twist,  # type: ignore[arg-type]
+    FLUID_PRESSURE: _float_block(
+        FLUID_PRESSURE, msg.FluidPressureFields, ("frame_id",),
+        ("fluid_pressure", 0), ("variance", 0),
     ),
-    FLUID_PRESSURE: Codec(
-        FLUID_PRESSURE,
-        FluidPressureFields,
-        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 2)),
-        lambda f: (f.frame_id,),
-        _pack_pressure,
-        _unpack_pressure,  # type: ignore[arg-type]
-    ),
-    MAGNETIC_FIELD: Codec(
-        MAGNETIC_FIELD,
-        MagneticFieldFields,
-        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 12)),
-        lambda f: (f.frame_id,),
-        _pack_mag,
-        _unpack_mag,  # type: ignore[arg-type]
+    MAGNETIC_FIELD: _float_block(
+        MAGNETIC_FIELD, msg.MagneticFieldFields, ("frame_id",),
+        ("magnetic_field", 3), ("magnetic_field_covariance", 9),
     ),
     # TF and increment topics (docs/interface.md)
-    QUATERNION_STAMPED: Codec(
-        QUATERNION_STAMPED,
-        QuaternionStampedFields,
-        (*_STAMP, ("frame_id", "str", 1), ("d", "<f8", 4)),
-        lambda f: (f.frame_id,),
-        _pack_quat,  # type: ignore[arg-type]
-        _unpack_quat,
+    QUATERNION_STAMPED: _float_block(
+        QUATERNION_STAMPED, msg.QuaternionStampedFields, ("frame_id",), ("quaternion", 4)
     ),
     TF_MESSAGE: Codec(
         TF_MESSAGE,
-        TFMessageFields,
+        msg.TFMessageFields,
         _tf_items(1),
         _tf_strings,  # type: ignore[arg-type]
         _pack_tf,  # type: ignore[arg-type]
@@ -507,7 +428,7 @@ MSGTYPES: dict[str, Codec] = {
         items_for=lambda f: _tf_items(len(f.frame_ids)),  # type: ignore[attr-defined]
         items_of_payload=_tf_items_of_payload,
     ),
-}
+}  # fmt: skip
 
 _BY_FIELDS = {c.fields_type: c for c in MSGTYPES.values()}
 
@@ -577,15 +498,6 @@ def _fill(raw: NDArray[np.uint8], layout: Layout, codec: Codec, fields: object) 
     codec.pack(arr, fields)
 
 
-def _rows_of(fields: object, start: int, stop: int) -> object:
-    """Field container of messages ``start:stop`` (views; strings kept)."""
-    kw = {}
-    for f in dataclass_fields(fields):  # type: ignore[arg-type]
-        v = getattr(fields, f.name)
-        kw[f.name] = v if isinstance(v, str | tuple) else v[start:stop]  # tuple: TF frame ids
-    return type(fields)(**kw)
-
-
 def serialize_rows(fields: object) -> NDArray[np.uint8]:
     """Payloads of all messages of a field container as one ``(N, size)`` uint8 matrix."""
     codec, layout = _prepare(fields)
@@ -620,7 +532,8 @@ def serialize(fields: object) -> list[bytes]:
     out: list[bytes] = []
     for start in range(0, n, block):
         stop = min(start + block, n)
-        _fill(buf[: stop - start], layout, codec, _rows_of(fields, start, stop))
+        rows = fields.rows(start, stop)  # type: ignore[attr-defined]
+        _fill(buf[: stop - start], layout, codec, rows)
         out += items[: stop - start].tolist()
     return out
 

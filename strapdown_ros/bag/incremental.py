@@ -23,17 +23,14 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
-from rosbags.interfaces import Connection, Qos
-from rosbags.rosbag2 import Writer
+from rosbags.interfaces import Connection
 
 from strapdown_ros.bag.writer import (
-    DEFAULT_QOS,
-    STORAGES,
-    TYPESTORE,
     BagWriteError,
+    BagWriterBase,
     check_destination,
     open_rosbags_writer,
 )
@@ -41,7 +38,7 @@ from strapdown_ros.bag.writer import (
 __all__ = ["IncrementalBagWriter"]
 
 
-class IncrementalBagWriter:
+class IncrementalBagWriter(BagWriterBase):
     """Writes messages one by one into a rosbag2 directory, durable up to the last flush.
 
     Parameters
@@ -54,6 +51,9 @@ class IncrementalBagWriter:
         Replace an existing bag directory (or an empty directory) at ``path``.
     custom_data : mapping of str to str, optional
         Stored in the metadata ``custom_data``.
+    qos : Qos, optional
+        Offered QoS profile of a topic added without one (default
+        :data:`~strapdown_ros.bag.qos.DEFAULT_QOS`).
     fsync : bool
         Also ``fsync`` the data file at every flush (survives power loss, not only a killed
         process; costs a disk sync per flush).
@@ -70,32 +70,17 @@ class IncrementalBagWriter:
     """
 
     def __init__(
-        self,
-        path: str | os.PathLike[str],
-        *,
-        storage: str = "mcap",
-        force: bool = False,
-        custom_data: Mapping[str, str] | None = None,
-        fsync: bool = False,
+        self, path: str | os.PathLike[str], *, fsync: bool = False, **settings: Any
     ) -> None:
-        if storage not in STORAGES:
-            raise BagWriteError(f"unknown storage {storage!r}; choose one of {sorted(STORAGES)}")
-        self.path = Path(path).absolute()
-        self.storage = storage
-        self.force = force
-        self.custom_data = dict(custom_data or {"generator": "strapdown_ros"})
+        super().__init__(path, **settings)
         self.fsync = fsync
-        self._writer: Writer | None = None
-        self._connections: dict[str, Connection] = {}
-        self._counts: dict[str, int] = {}
         self._flushed: dict[str, int] = {}
 
     # -- lifecycle -----------------------------------------------------------------------------
 
     def open(self) -> IncrementalBagWriter:
         """Create the bag directory and its data file; returns ``self``."""
-        if self._writer is not None:
-            raise BagWriteError("bag already open")
+        self._require_closed()
         p = self.path
         if check_destination(p, self.force):
             shutil.rmtree(p)
@@ -134,61 +119,17 @@ class IncrementalBagWriter:
         """True between :meth:`open` and :meth:`close`."""
         return self._writer is not None
 
-    def _require(self) -> Writer:
-        if self._writer is None:
-            raise BagWriteError("bag is not open")
-        return self._writer
-
     # -- writing -------------------------------------------------------------------------------
 
     @property
-    def message_counts(self) -> dict[str, int]:
-        """Messages written so far, per topic (registration order)."""
-        return dict(self._counts)
-
-    @property
     def flushed_counts(self) -> dict[str, int]:
-        """Messages on disk as of the last flush, per topic."""
-        return dict(self._flushed)
+        """Messages on disk as of the last flush, per topic (registration order)."""
+        return {topic: self._flushed.get(topic, 0) for topic in self._counts}
 
     @property
     def topics(self) -> dict[str, str]:
         """Registered topic -> message type."""
         return {t: c.msgtype for t, c in self._connections.items()}
-
-    def add_topic(
-        self, topic: str, msgtype: str, qos: Qos | Sequence[Qos] | None = None
-    ) -> Connection:
-        """Register ``topic`` with type ``msgtype`` and its offered QoS profile(s); idempotent.
-
-        ``qos`` defaults to :data:`~strapdown_ros.bag.writer.DEFAULT_QOS` (what ``ros2 bag
-        record`` stores for a reliable, volatile rclpy publisher).
-        """
-        writer = self._require()
-        conn = self._connections.get(topic)
-        if conn is not None:
-            if conn.msgtype != msgtype:
-                raise BagWriteError(
-                    f"topic {topic} already has type {conn.msgtype}, cannot add {msgtype}"
-                )
-            return conn
-        if msgtype not in TYPESTORE.types:
-            raise BagWriteError(f"unknown message type {msgtype!r}")
-        profiles = [DEFAULT_QOS] if qos is None else [qos] if isinstance(qos, Qos) else list(qos)
-        conn = writer.add_connection(
-            topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=profiles
-        )
-        self._connections[topic] = conn
-        self._counts[topic] = 0
-        self._flushed[topic] = 0
-        return conn
-
-    def connection(self, topic: str) -> Connection:
-        """The connection of a registered topic (for :meth:`write_connection`)."""
-        try:
-            return self._connections[topic]
-        except KeyError:
-            raise BagWriteError(f"topic {topic} not registered (add_topic first)") from None
 
     def write(self, topic: str, stamp_ns: int, payload: bytes | memoryview) -> None:
         """Write one serialized message of a registered topic, logged at ``stamp_ns``."""
@@ -222,12 +163,7 @@ class IncrementalBagWriter:
 
     def abort(self) -> None:
         """Stop writing without a summary or metadata (what a crash leaves; repairable)."""
-        writer, self._writer = self._writer, None
-        if writer is not None:
-            try:
-                writer.abort()
-            except Exception:  # noqa: BLE001 - best effort
-                pass
+        self._abort_writer()
 
 
 def _fsync_dir(path: Path) -> None:

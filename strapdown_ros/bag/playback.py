@@ -230,7 +230,7 @@ class ReaderProcess:
     The bag's chunks are parsed by another process (on another core), so the publishing thread
     never waits for a parse and never competes with a reader thread for Python's GIL. It reads
     the pipe without blocking in :meth:`refill` (whatever has arrived) and unpickles complete
-    batches (about 0.3 µs per message); only :meth:`get` with an empty buffer waits.
+    batches; only :meth:`get` with an empty buffer waits.
 
     Parameters
     ----------

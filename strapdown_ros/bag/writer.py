@@ -16,25 +16,19 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from rosbags.interfaces import (
-    Connection,
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
+from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from strapdown_ros.bag.batches import Batch, batch, clock_batch, merge_order, stream_batches
+from strapdown_ros.bag.qos import DEFAULT_QOS
 from strapdown_ros.core.stream import Stream
 
 __all__ = [
@@ -44,6 +38,7 @@ __all__ = [
     "TYPESTORE",
     "Batch",
     "BagWriter",
+    "BagWriterBase",
     "BagWriteError",
     "batch",
     "check_destination",
@@ -58,23 +53,6 @@ __all__ = [
 BAG_VERSION = 9
 #: Storage identifiers accepted by :class:`BagWriter` (``mcap`` is Jazzy's default).
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
-
-#: rmw "infinite" duration as rosbag2 stores it.
-_INFINITE = QosTime(sec=9223372036, nsec=854775807)
-#: Offered QoS stored per topic: what ``ros2 bag record`` (Jazzy) stores for a default rclpy/rclcpp
-#: publisher (reliable, volatile; history/depth are not visible through the graph → unknown/0).
-#: ``ros2 bag play`` adapts reliability and durability from it.
-DEFAULT_QOS = Qos(
-    history=QosHistory.UNKNOWN,
-    depth=0,
-    reliability=QosReliability.RELIABLE,
-    durability=QosDurability.VOLATILE,
-    deadline=_INFINITE,
-    lifespan=_INFINITE,
-    liveliness=QosLiveliness.AUTOMATIC,
-    liveliness_lease_duration=_INFINITE,
-    avoid_ros_namespace_conventions=False,
-)
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 #: The ROS 2 Jazzy type store of ``rosbags`` (message definitions, type hashes).
@@ -126,7 +104,93 @@ def open_rosbags_writer(path: Path, storage: str, custom_data: Mapping[str, str]
     return writer
 
 
-class BagWriter:
+class BagWriterBase:
+    """What both writers do alike: the settings, the open ``rosbags`` writer and the topics.
+
+    :class:`BagWriter` (atomic) and
+    :class:`~strapdown_ros.bag.incremental.IncrementalBagWriter` (durable up to the last flush)
+    differ in where they write and when the data reach the disk; registering topics, counting
+    messages and aborting are the same.
+    """
+
+    #: Said when a method needs the open writer.
+    _NOT_OPEN = "bag is not open"
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        storage: str = "mcap",
+        force: bool = False,
+        custom_data: Mapping[str, str] | None = None,
+        qos: Qos = DEFAULT_QOS,
+    ) -> None:
+        if storage not in STORAGES:
+            raise BagWriteError(f"unknown storage {storage!r}; choose one of {sorted(STORAGES)}")
+        self.path = Path(path).absolute()
+        self.storage = storage
+        self.force = force
+        self.custom_data = dict(custom_data or {"generator": "strapdown_ros"})
+        self.qos = qos
+        self._writer: Writer | None = None
+        self._connections: dict[str, Connection] = {}
+        self._counts: dict[str, int] = {}
+
+    def _require(self) -> Writer:
+        if self._writer is None:
+            raise BagWriteError(self._NOT_OPEN)
+        return self._writer
+
+    def _require_closed(self) -> None:
+        if self._writer is not None:
+            raise BagWriteError("bag already open")
+
+    @property
+    def message_counts(self) -> dict[str, int]:
+        """Messages written so far, per topic (registration order)."""
+        return dict(self._counts)
+
+    def add_topic(
+        self, topic: str, msgtype: str, qos: Qos | Sequence[Qos] | None = None
+    ) -> Connection:
+        """Register ``topic`` with type ``msgtype`` (``pkg/msg/Name``) and its offered QoS
+        profile(s) (default: the writer's ``qos``); idempotent."""
+        writer = self._require()
+        conn = self._connections.get(topic)
+        if conn is not None:
+            if conn.msgtype != msgtype:
+                raise BagWriteError(
+                    f"topic {topic} already has type {conn.msgtype}, cannot add {msgtype}"
+                )
+            return conn
+        if msgtype not in _TYPESTORE.types:
+            raise BagWriteError(f"unknown message type {msgtype!r}")
+        profiles = [self.qos] if qos is None else [qos] if isinstance(qos, Qos) else list(qos)
+        conn = writer.add_connection(
+            topic, msgtype, typestore=_TYPESTORE, offered_qos_profiles=profiles
+        )
+        self._connections[topic] = conn
+        self._counts[topic] = 0
+        return conn
+
+    def connection(self, topic: str) -> Connection:
+        """The connection of a registered topic."""
+        try:
+            return self._connections[topic]
+        except KeyError:
+            raise BagWriteError(f"topic {topic} not registered (add_topic first)") from None
+
+    def _abort_writer(self) -> None:
+        """Stop the ``rosbags`` writer without a summary or metadata (best effort)."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            try:
+                writer.abort()
+            except Exception:  # noqa: BLE001 - best effort
+                pass
+
+
+class BagWriter(BagWriterBase):
     """Context manager writing a rosbag2 directory atomically.
 
     Parameters
@@ -152,26 +216,11 @@ class BagWriter:
             bag.write_batches([batch("/reference/imu", imu), batch("/reference/odom", odom)])
     """
 
-    def __init__(
-        self,
-        path: str | os.PathLike[str],
-        *,
-        storage: str = "mcap",
-        force: bool = False,
-        custom_data: Mapping[str, str] | None = None,
-        qos: Qos = DEFAULT_QOS,
-    ) -> None:
-        if storage not in STORAGES:
-            raise BagWriteError(f"unknown storage {storage!r}; choose one of {sorted(STORAGES)}")
-        self.path = Path(path).absolute()
-        self.storage = storage
-        self.force = force
-        self.custom_data = dict(custom_data or {"generator": "strapdown_ros"})
-        self.qos = qos
+    _NOT_OPEN = "bag is not open (use BagWriter as a context manager)"
+
+    def __init__(self, path: str | os.PathLike[str], **settings: Any) -> None:
+        super().__init__(path, **settings)
         self._tmpdir: Path | None = None
-        self._writer: Writer | None = None
-        self._connections: dict[str, Connection] = {}
-        self._counts: dict[str, int] = {}
         self._check_destination()
 
     # -- destination ---------------------------------------------------------------------------
@@ -183,8 +232,7 @@ class BagWriter:
 
     def open(self) -> BagWriter:
         """Create the temporary bag (called by ``__enter__``)."""
-        if self._writer is not None:
-            raise BagWriteError("bag already open")
+        self._require_closed()
         self._check_destination()
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._tmpdir = Path(
@@ -219,12 +267,7 @@ class BagWriter:
 
     def abort(self) -> None:
         """Discard everything written so far (destination untouched)."""
-        writer, self._writer = self._writer, None
-        if writer is not None:
-            try:
-                writer.abort()
-            except Exception:  # noqa: BLE001 - best effort, the directory is removed anyway
-                pass
+        self._abort_writer()
         self._cleanup()
 
     def _cleanup(self) -> None:
@@ -246,46 +289,12 @@ class BagWriter:
         else:
             self.abort()
 
-    def _require(self) -> Writer:
-        if self._writer is None:
-            raise BagWriteError("bag is not open (use BagWriter as a context manager)")
-        return self._writer
-
     # -- writing -------------------------------------------------------------------------------
-
-    @property
-    def message_counts(self) -> dict[str, int]:
-        """Messages written so far, per topic."""
-        return dict(self._counts)
-
-    def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> Connection:
-        """Register ``topic`` with type ``msgtype`` (``pkg/msg/Name``); idempotent."""
-        writer = self._require()
-        conn = self._connections.get(topic)
-        if conn is not None:
-            if conn.msgtype != msgtype:
-                raise BagWriteError(
-                    f"topic {topic} already has type {conn.msgtype}, cannot add {msgtype}"
-                )
-            return conn
-        if msgtype not in _TYPESTORE.types:
-            raise BagWriteError(f"unknown message type {msgtype!r}")
-        conn = writer.add_connection(
-            topic,
-            msgtype,
-            typestore=_TYPESTORE,
-            offered_qos_profiles=[self.qos if qos is None else qos],
-        )
-        self._connections[topic] = conn
-        self._counts[topic] = 0
-        return conn
 
     def write(self, topic: str, stamp_ns: int, payload: bytes | memoryview) -> None:
         """Write one pre-serialized message of a registered topic, logged at ``stamp_ns``."""
         writer = self._require()
-        conn = self._connections.get(topic)
-        if conn is None:
-            raise BagWriteError(f"topic {topic} not registered (add_topic first)")
+        conn = self.connection(topic)
         writer.write(conn, int(stamp_ns), payload)
         self._counts[topic] += 1
 

@@ -1,6 +1,6 @@
 """``strapdown-sim campaign``: Monte Carlo realizations of a scenario on Dask distributed.
 
-:func:`run_campaign` plans the runs (:mod:`~strapdown_ros.campaign.plan`), computes what all
+:func:`run_campaign` plans the runs (:mod:`~strapdown_ros.campaign.runs`), computes what all
 runs share once (:mod:`~strapdown_ros.campaign.compute`), runs the missing runs on a Dask
 cluster (:mod:`~strapdown_ros.campaign.engine`), and writes the per-run results, the ensemble
 tables (:mod:`~strapdown_ros.campaign.results`) and the report
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
-from strapdown_ros.campaign.plan import CampaignPlan
+from strapdown_ros.campaign.runs import Campaign
 from strapdown_ros.campaign.vary import parse_vary
 
 __all__ = ["CampaignResult", "run_campaign"]
@@ -66,16 +66,16 @@ def _versions() -> dict[str, str]:
     return out
 
 
-def _write_info(plan: CampaignPlan, out: Path, runs: int, vary: list[str]) -> None:
+def _write_info(campaign: Campaign, out: Path, runs: int, vary: list[str]) -> None:
     info = {
-        "scenario": str(plan.scenario_path),
-        "scenario_name": plan.base.name,
+        "scenario": str(campaign.scenario_path),
+        "scenario_name": campaign.base.name,
         "runs": runs,
-        "seed": plan.seed,
-        "common": plan.common,
-        "seed_keys": plan.seed_keys,
+        "seed": campaign.seed,
+        "common": campaign.common,
+        "seed_keys": campaign.seed_keys,
         "vary": vary,
-        "shared": plan.shared_level,
+        "shared": campaign.shared_level,
         "versions": _versions(),
     }
     path = out / "campaign.json"
@@ -119,18 +119,18 @@ def run_campaign(
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"--runs must be an integer >= 1, got {runs!r}")
     varies = [parse_vary(v) for v in vary or []]
-    plan = CampaignPlan(Path(scenario), list(overrides or []), duration_s, varies, seed)
+    campaign = Campaign(Path(scenario), list(overrides or []), duration_s, varies, seed)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    _write_info(plan, out, runs, [v.text for v in varies])
-    result = CampaignResult(out=out, runs=runs, shared=plan.shared_level)
+    _write_info(campaign, out, runs, [v.text for v in varies])
+    result = CampaignResult(out=out, runs=runs, shared=campaign.shared_level)
     done = finished_runs(out)
     result.skipped = sorted(k for k in done if k < runs)
     missing = [k for k in range(runs) if k not in done]
     start = time.monotonic()
     if missing:
         t = time.perf_counter()
-        shared = shared_inputs(plan)
+        shared = shared_inputs(campaign)
         result.shared_s = time.perf_counter() - t
         with dask_client(scheduler, workers) as client:
 
@@ -138,7 +138,7 @@ def run_campaign(
                 write_run(out, value)  # type: ignore[arg-type]
 
             engine = run_tasks(
-                client, missing, run_one, shared, (plan, str(out) if bags else None), store, log
+                client, missing, run_one, shared, (campaign, str(out) if bags else None), store, log
             )
         result.ran, result.failed = sorted(engine.done), engine.failed
         result.workers, result.dashboard = engine.workers, engine.dashboard

@@ -1,9 +1,9 @@
 """The computation of a campaign: what all runs share, computed once, and one run.
 
-A run is ``generate``'s pipeline (the same stage objects, fed the same pieces in the same
-order) restricted to what a campaign needs: the variation when it differs per run, the IMU
-error model, the navigator, and the navigator's errors. What does not change between runs is
-computed once in the client and sent to every worker (:attr:`CampaignPlan.shared_level`):
+A run is ``generate``'s chain (the same stage objects, fed the same pieces in the same order)
+restricted to what a campaign needs: the links its results (the navigator's errors) depend on
+(:func:`strapdown_ros.plan.chain.links_for`). What does not change between runs is
+computed once in the client and sent to every worker (:attr:`Campaign.shared_level`):
 
 * ``variation``: the pieces of the navigator's inputs (the ideal IMU that the error model reads
   and the truth Odometry) — only the IMU errors (and navigator/aiding keys) vary;
@@ -19,7 +19,7 @@ overrides, bit for bit (``test/test_campaign.py``).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,11 +27,13 @@ import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.campaign.plan import CampaignPlan
 from strapdown_ros.campaign.results import RunResult, run_dir
-from strapdown_ros.config import Scenario
+from strapdown_ros.campaign.runs import Campaign
+from strapdown_ros.plan import Plan, resolve_plan
+from strapdown_ros.plan.chain import feed_stages, link, links_for, offline_stages
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
-__all__ = ["Shared", "run_one", "shared_inputs"]
+__all__ = ["Shared", "run_links", "run_one", "shared_inputs"]
 
 #: Navigator error topics (recording.topics keys), in the column order of ERROR_COLUMNS.
 ERROR_KEYS = ("navigator_error_position", "navigator_error_velocity", "navigator_error_attitude")
@@ -47,53 +49,38 @@ class Shared:
     pieces: list[list[Batch]] | None
 
 
-def _keep(batches: Iterable[Batch], topics: set[str]) -> list[Batch]:
-    return [b for b in batches if b.topic in topics]
+#: Chain links computed once for all runs at each shared level (Campaign.shared_level).
+SHARED_LINKS: dict[str, tuple[str, ...]] = {
+    "variation": ("trajectory", "variation"),
+    "reference": ("trajectory",),
+    "none": (),
+}
+#: The links whose outputs a run's results are made of.
+RESULT_LINKS = ("navigator",)
 
 
-def _reference_pieces(scenario: Scenario) -> tuple[int, Iterator[list[Batch]]]:
-    from strapdown_ros.stages.reference import (
-        build_trajectory,
-        output_cycles,
-        reference_batch_chunks,
-    )
-
-    trajectory = build_trajectory(scenario)
-    cycles = output_cycles(scenario, trajectory)
-    return cycles, (b for _, b in reference_batch_chunks(scenario, trajectory))
+def run_links(plan: Plan, level: str) -> list[str]:
+    """The chain links each run computes itself: those the results need that are not shared."""
+    shared = SHARED_LINKS[level]
+    have = {t for t, p in plan.topics.items() if p.link in shared}
+    return [n for n in links_for(plan, RESULT_LINKS, have) if n not in shared]
 
 
-def _variation_stage(scenario: Scenario, cycles: int):  # noqa: ANN202
-    from strapdown_ros.stages.variation import VariationStage
-
-    return None if scenario.variation is None else VariationStage.offline(scenario, cycles)
-
-
-def shared_inputs(plan: CampaignPlan) -> Shared:
+def shared_inputs(campaign: Campaign) -> Shared:
     """Compute the part of the streams that all runs share (in this process, once)."""
-    scenario = plan.base
-    level = plan.shared_level
-    if level == "none":
+    level = campaign.shared_level
+    shared = SHARED_LINKS[level]
+    if not shared:
         return Shared(level, 0, None)
-    cycles, pieces = _reference_pieces(scenario)
-    topics = scenario.recording.topics
-    if level == "reference":
-        keep = {topics["reference_imu"], topics["reference_odom"]}
-        return Shared(level, cycles, [_keep(p, keep) for p in pieces])
-    from strapdown_ros.config.navigator import navigator_spec
-    from strapdown_ros.stages.measurement import imu_model_topics
-
-    nav = navigator_spec(scenario)
-    keep = {imu_model_topics(scenario)[0]}
-    if nav is not None and nav.truth_topic:
-        keep.add(nav.truth_topic)
-    variation = _variation_stage(scenario, cycles)
-    out = []
-    for batches in pieces:
-        if variation is not None:
-            batches = batches + variation.feed_batches(batches)
-        out.append(_keep(batches, keep))
-    return Shared(level, cycles, out)
+    plan = resolve_plan(campaign.base)
+    produced = {t for t, p in plan.topics.items() if p.link in shared}
+    keep = {t for n in run_links(plan, level) for t in link(n).inputs(plan)} & produced
+    stages = offline_stages(plan, shared)
+    pieces = [
+        [b for b in feed_stages(stages, batches) if b.topic in keep]
+        for _, batches in reference_batch_chunks(plan)
+    ]
+    return Shared(level, plan.cycles, pieces)
 
 
 def _errors(batches: list[Batch], topics: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -117,41 +104,33 @@ def _errors(batches: list[Batch], topics: list[str]) -> tuple[np.ndarray, np.nda
     return stamps, np.hstack(columns)
 
 
-def run_one(shared: Shared, index: int, plan: CampaignPlan, bags_out: str | None) -> RunResult:
+def run_one(shared: Shared, index: int, campaign: Campaign, bags_out: str | None
+            ) -> RunResult:  # fmt: skip
     """Compute run ``index`` (in a worker): its navigator errors at the navigation rate.
 
     With ``bags_out`` (the campaign's ``--out``), the run's full dataset is also written by
     ``generate`` to ``runs/NNNN/bag``.
     """
-    from strapdown_ros.stages.measurement import generate_measured_stream
-    from strapdown_ros.stages.navigation import NavigationStage
-
     start = time.perf_counter()
-    spec = plan.run(index)
-    scenario = plan.scenario(spec)
+    spec = campaign.run(index)
+    plan = resolve_plan(campaign.scenario(spec))
     if shared.pieces is None:
-        cycles, pieces = _reference_pieces(scenario)
+        pieces: Iterable[list[Batch]] = (b for _, b in reference_batch_chunks(plan))
     else:
-        cycles, pieces = shared.cycles, iter(shared.pieces)
-    variation = _variation_stage(scenario, cycles) if shared.level != "variation" else None
-    measured = generate_measured_stream(scenario)
-    navigator = NavigationStage.for_scenario(scenario, period_ns=scenario.period_ns)
-    topics = scenario.recording.topics
+        pieces = shared.pieces
+    stages = offline_stages(plan, run_links(plan, shared.level))
+    topics = plan.scenario.recording.topics
     error_topics = [topics[k] for k in ERROR_KEYS]
     out: list[Batch] = []
-    for batches in pieces:  # generate's order: variation, measured IMU, navigator
-        if variation is not None:
-            batches = batches + variation.feed_batches(batches)
-        if measured is not None:
-            batches = batches + measured.feed_batches(batches)
-        out += [b for b in navigator.feed_batches(batches) if b.topic in error_topics]
+    for batches in pieces:  # generate's order (the chain's)
+        out += [b for b in feed_stages(stages, batches) if b.topic in error_topics]
     stamps, errors = _errors(out, error_topics)
     bag = None
     if bags_out is not None:
         from strapdown_ros.generate import generate_dataset
 
         path = run_dir(Path(bags_out), index) / "bag"
-        generate_dataset(scenario, path, force=True)
+        generate_dataset(plan, path, force=True)
         bag = str(path)
     return RunResult(
         index=index,

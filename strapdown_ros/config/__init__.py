@@ -14,7 +14,9 @@ from strapdown_ros.config.scenario import (
     ScenarioError,
     apply_overrides,
     load_scenario,
+    navigator_spec,
     parse_scenario,
+    tf_spec,
 )
 
 __all__ = [
@@ -26,5 +28,7 @@ __all__ = [
     "ScenarioError",
     "apply_overrides",
     "load_scenario",
+    "navigator_spec",
     "parse_scenario",
+    "tf_spec",
 ]

@@ -9,6 +9,7 @@ model (:mod:`strapdown_ros.core.aiding`). Keys, models and presets: docs/aiding.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
@@ -24,15 +25,15 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    shorten,
     with_preset,
 )
-from strapdown_ros.core.aiding.baro import BaroErrors
-from strapdown_ros.core.aiding.gnss import GnssErrors
-from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
-from strapdown_ros.core.aiding.odometer import OdometerErrors
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
+if TYPE_CHECKING:  # imported by errors(): the core models load scipy.signal
+    from strapdown_ros.core.aiding.baro import BaroErrors
+    from strapdown_ros.core.aiding.gnss import GnssErrors
+    from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
+    from strapdown_ros.core.aiding.odometer import OdometerErrors
 
 __all__ = [
     "AIDING_TOPICS",
@@ -50,7 +51,7 @@ __all__ = [
     "decimal_year",
 ]
 
-#: Fixed topic names of the aiding messages (issue 16), by stream key.
+#: Fixed topic names of the aiding messages, by stream key.
 AIDING_TOPICS: dict[str, str] = {
     "gnss_fix": "/gnss/fix",
     "gnss_vel": "/gnss/vel",
@@ -71,9 +72,9 @@ Matrix3 = tuple[Axes, Axes, Axes]
 
 def _finite(value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"must be a number, got {type(value).__name__} {value!r}")
+        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
     if not math.isfinite(value):
-        raise ValueError(f"must be finite, got {value!r}")
+        raise ValueError(f"must be finite, got {shorten(value)}")
     return float(value)
 
 
@@ -85,14 +86,14 @@ def _axes(sign: str) -> Any:
             return None
         if isinstance(value, list | tuple):
             if len(value) != 3:
-                raise ValueError(f"must be a number or a list of 3 numbers, got {value!r}")
+                raise ValueError(f"must be a number or a list of 3 numbers, got {shorten(value)}")
             out = tuple(_finite(v) for v in value)
         else:
             out = (_finite(value),) * 3
         if sign == "nonneg" and min(out) < 0:
-            raise ValueError(f"must be >= 0, got {value!r}")
+            raise ValueError(f"must be >= 0, got {shorten(value)}")
         if sign == "positive" and min(out) <= 0:
-            raise ValueError(f"must be > 0, got {value!r}")
+            raise ValueError(f"must be > 0, got {shorten(value)}")
         return out  # type: ignore[return-value]
 
     return BeforeValidator(convert)
@@ -102,11 +103,11 @@ def _matrix(value: Any) -> Matrix3 | None:
     if value is None:
         return None
     if not isinstance(value, list | tuple) or len(value) != 3:
-        raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {value!r}")
+        raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {shorten(value)}")
     rows = []
     for row in value:
         if not isinstance(row, list | tuple) or len(row) != 3:
-            raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {value!r}")
+            raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {shorten(value)}")
         rows.append(tuple(_finite(v) for v in row))
     return tuple(rows)  # type: ignore[return-value]
 
@@ -121,7 +122,7 @@ Seed = Annotated[StrictInt, Field(ge=0)]
 
 def _frame(value: Any) -> Any:
     if value is not None and (not isinstance(value, str) or not value or " " in value):
-        raise ValueError(f"must be a frame id, got {value!r}")
+        raise ValueError(f"must be a frame id, got {shorten(value)}")
     return value
 
 
@@ -206,11 +207,11 @@ def _outage(value: Any) -> Any:
     if isinstance(value, list | tuple) and len(value) == 2:
         start, end = (_finite(v) for v in value)
         if start < 0:
-            raise ValueError(f"the start must be >= 0 s, got {start!r}")
+            raise ValueError(f"the start must be >= 0 s, got {shorten(start)}")
         if not end > start:
-            raise ValueError(f"[start_s, end_s] needs end_s > start_s, got {list(value)!r}")
+            raise ValueError(f"[start_s, end_s] needs end_s > start_s, got {shorten(list(value))}")
         return (start, end)
-    raise ValueError(f"must be a window [start_s, end_s] (s since the start), got {value!r}")
+    raise ValueError(f"must be a window [start_s, end_s] (s since the start), got {shorten(value)}")
 
 
 Outage = Annotated[tuple[float, float], BeforeValidator(_outage)]
@@ -261,6 +262,8 @@ class GnssSpec(_Sensor):
 
     def errors(self) -> GnssErrors:
         """The core model's parameters (SI, NED)."""
+        from strapdown_ros.core.aiding.gnss import GnssErrors
+
         return GnssErrors(
             position_white=_arr(self.position_white_m),
             position_gm_sigma=_arr(self.position_gm_sigma_m),
@@ -343,6 +346,8 @@ class BarometerSpec(_Sensor):
 
     def errors(self) -> BaroErrors:
         """The core model's parameters (Pa, s)."""
+        from strapdown_ros.core.aiding.baro import BaroErrors
+
         return BaroErrors(
             bias=self.bias_pa or 0.0,
             turn_on_bias_sigma=self.turn_on_bias_sigma_pa or 0.0,
@@ -398,6 +403,8 @@ class MagnetometerSpec(_Sensor):
 
     def errors(self) -> MagnetometerErrors:
         """The core model's parameters (tesla, FRD)."""
+        from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
+
         return MagnetometerErrors(
             hard_iron=_arr(self.hard_iron_ut) * 1e-6,
             hard_iron_sigma=_arr(self.hard_iron_sigma_ut) * 1e-6,
@@ -462,6 +469,8 @@ class WheelOdometerSpec(_Sensor):
 
     def errors(self) -> OdometerErrors:
         """The core model's parameters (dimensionless, m/s, pulses/m)."""
+        from strapdown_ros.core.aiding.odometer import OdometerErrors
+
         return OdometerErrors(
             scale_factor=(self.scale_factor_ppm or 0.0) * 1e-6,
             scale_factor_sigma=(self.scale_factor_sigma_ppm or 0.0) * 1e-6,
@@ -503,8 +512,16 @@ class AidingSpec(Model):
         return [AIDING_TOPICS[k] for s in self.sensors() for k in keys[s]]
 
 
-def check_aiding(scenario: Scenario) -> None:
-    """Cross-field rules of ``aiding`` (called by the scenario's validation).
+def check_aiding(
+    spec: AidingSpec | None,
+    *,
+    period_ns: int,
+    start_time_s: float,
+    start_time_ns: int,
+    topics: Mapping[str, str],
+) -> None:
+    """Cross-field rules of ``aiding`` (called by the scenario's validation with its period T
+    ``period_ns``, its start ``start_time_s`` (and in ns) and its ``recording.topics``).
 
     Every epoch of a sensor (the multiples of its period P on the absolute time grid) must be
     a truth cycle: P a multiple of the scenario's period T and ``start_time_s`` on the grid of
@@ -516,11 +533,10 @@ def check_aiding(scenario: Scenario) -> None:
     ScenarioError
         Naming the key, e.g. ``aiding.gnss.rate_hz``.
     """
-    spec: AidingSpec | None = getattr(scenario, "aiding", None)
     if spec is None:
         return
-    t_ns = scenario.period_ns
-    t0 = scenario.start_time_ns
+    t_ns = period_ns
+    t0 = start_time_ns
     for key, sensor in spec.sensors().items():
         p_ns = sensor.period_ns
         if p_ns % t_ns:
@@ -532,7 +548,7 @@ def check_aiding(scenario: Scenario) -> None:
         if t0 % t_ns:
             raise ScenarioError(
                 f"aiding.{key}.rate_hz",
-                f"start_time_s = {scenario.start_time_s!r} is not a multiple of T = {t_ns} ns, "
+                f"start_time_s = {start_time_s!r} is not a multiple of T = {t_ns} ns, "
                 "so no epoch (a multiple of 1/rate_hz since the Unix epoch) is a truth cycle",
             )
         if key == "gnss" and 1_000_000_000 % p_ns:
@@ -549,7 +565,7 @@ def check_aiding(scenario: Scenario) -> None:
                 f"start_time_s gives the year {year:.3f}, outside IGRF-14 "
                 f"({IGRF_YEARS[0]:g}-{IGRF_YEARS[1]:g}); set decimal_year",
             )
-    used = set(scenario.recording.topics.values())
+    used = set(topics.values())
     for topic in spec.topics():
         if topic in used:
             raise ScenarioError("aiding", f"{topic} is also another stream's topic")

@@ -5,6 +5,8 @@ Every section of a scenario file is a :class:`Model` (pydantic v2): unknown keys
 integer is accepted where a real number is expected) and a validated model is frozen. A
 :class:`pydantic.ValidationError` is turned into one :class:`ScenarioError` whose key reads
 like the file, e.g. ``trajectory.segments[2].accel_mps2: must be a finite number, got nan``.
+A value echoed in a message is shortened (:func:`shorten`), so that a huge value (or one whose
+YAML aliases make it huge) gives a message of a line, not of megabytes.
 """
 
 from __future__ import annotations
@@ -35,8 +37,69 @@ __all__ = [
     "Vector3",
     "error_from_validation",
     "join_key",
+    "shorten",
     "with_preset",
 ]
+
+#: Longest echo of a value (or of a key) in an error message, in characters; cut with "…".
+ECHO_LIMIT = 200
+#: Longest problem text of a :class:`ScenarioError` (a backstop; echoes are shortened first).
+PROBLEM_LIMIT = 4000
+
+
+class _FullError(Exception):
+    """The budget of :func:`shorten` is spent."""
+
+
+def shorten(value: Any, limit: int = ECHO_LIMIT) -> str:
+    """``repr(value)``, cut after ``limit`` characters with "…".
+
+    Only as much of ``value`` is formatted as is shown: lists, tuples and dicts are written
+    element by element (as ``repr`` writes them) until the budget is spent, so a value whose
+    parts are shared many times (YAML aliases) or that contains itself costs ``limit``
+    characters, not its expanded size. Other values are ``repr``'d (strings cut first).
+    """
+    parts: list[str] = []
+    left = [limit + 1]
+
+    def emit(text: str) -> None:
+        parts.append(text)
+        left[0] -= len(text)
+        if left[0] <= 0:
+            raise _FullError
+
+    def walk(v: Any) -> None:
+        kind = type(v)
+        if kind is list or kind is tuple:
+            emit("[" if kind is list else "(")
+            for i, item in enumerate(v):
+                if i:
+                    emit(", ")
+                walk(item)
+            emit("]" if kind is list else ",)" if len(v) == 1 else ")")
+        elif kind is dict:
+            emit("{")
+            for i, (k, item) in enumerate(v.items()):
+                if i:
+                    emit(", ")
+                walk(k)
+                emit(": ")
+                walk(item)
+            emit("}")
+        elif kind is str and len(v) > limit:
+            emit(repr(v[: limit + 1]))
+        else:
+            emit(repr(v))
+
+    try:
+        walk(value)
+    except _FullError:
+        return "".join(parts)[:limit] + "…"
+    return "".join(parts)
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[:limit] + "…"
 
 
 class ScenarioError(ValueError):
@@ -47,6 +110,7 @@ class ScenarioError(ValueError):
     """
 
     def __init__(self, key: str, problem: str) -> None:
+        key, problem = _cut(key, ECHO_LIMIT), _cut(problem, PROBLEM_LIMIT)
         self.key = key
         self.problem = problem
         super().__init__(f"{key}: {problem}" if key else problem)
@@ -70,9 +134,9 @@ StrictBool = Annotated[bool, Strict()]
 def _length(n: int) -> Any:
     def check(value: Any) -> Any:
         if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
-            raise ValueError(f"must be a list of {n} numbers, got {value!r}")
+            raise ValueError(f"must be a list of {n} numbers, got {shorten(value)}")
         if len(value) != n:
-            raise ValueError(f"must be a list of {n} numbers, got {len(value)}: {value!r}")
+            raise ValueError(f"must be a list of {n} numbers, got {len(value)}: {shorten(value)}")
         return tuple(value)
 
     return BeforeValidator(check)
@@ -187,17 +251,17 @@ def _format(error: Mapping[str, Any], allowed: Sequence[str]) -> str:
         return "is required"
     if kind == "union_tag_invalid":
         ctx = error.get("ctx", {})
-        return f"kind must be one of: {ctx.get('expected_tags', '')}; got {ctx.get('tag')!r}"
+        return f"kind must be one of: {ctx.get('expected_tags', '')}; got {shorten(ctx.get('tag'))}"
     if kind == "union_tag_not_found":
         return "is missing its 'kind'"
     if kind == "literal_error":
         expected = error.get("ctx", {}).get("expected", "")
-        return f"must be one of: {expected}; got {value!r}"
+        return f"must be one of: {expected}; got {shorten(value)}"
     if kind in ("float_type", "int_type", "float_parsing", "int_from_float"):
         want = "an integer" if kind.startswith("int") else "a number"
-        return f"must be {want}, got {type(value).__name__} {value!r}"
+        return f"must be {want}, got {type(value).__name__} {shorten(value)}"
     if kind == "finite_number":
-        return f"must be finite, got {value!r}"
+        return f"must be finite, got {shorten(value)}"
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         ctx = error.get("ctx", {})
         op, bound = {
@@ -206,18 +270,18 @@ def _format(error: Mapping[str, Any], allowed: Sequence[str]) -> str:
             "less_than": ("<", ctx.get("lt")),
             "less_than_equal": ("<=", ctx.get("le")),
         }[kind]
-        return f"must be {op} {bound}, got {value!r}"
+        return f"must be {op} {bound}, got {shorten(value)}"
     if kind == "bool_type":
-        return f"must be true or false, got {value!r}"
+        return f"must be true or false, got {shorten(value)}"
     if kind in ("string_type",):
-        return f"must be a string, got {value!r}"
+        return f"must be a string, got {shorten(value)}"
     if kind in ("model_type", "model_attributes_type", "dict_type"):
         return f"must be a mapping, got {type(value).__name__}"
     if kind in ("list_type", "tuple_type"):
-        return f"must be a list, got {value!r}"
+        return f"must be a list, got {shorten(value)}"
     if kind == "value_error":
         return str(error.get("ctx", {}).get("error", error["msg"]))
-    return f"{error['msg'][0].lower()}{error['msg'][1:]}, got {value!r}"
+    return f"{error['msg'][0].lower()}{error['msg'][1:]}, got {shorten(value)}"
 
 
 def error_from_validation(

@@ -15,16 +15,10 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import BeforeValidator, field_validator, model_validator
 
-from strapdown_ros.config.base import Model, ScenarioError, StrictInt, with_preset
-from strapdown_ros.core.imu_errors import (
-    G0,
-    ImuErrorParameters,
-    SensorErrors,
-    misalignment_matrix,
-)
+from strapdown_ros.config.base import Model, ScenarioError, StrictInt, shorten, with_preset
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
+if TYPE_CHECKING:  # imported by parameters(): the core model loads scipy.signal
+    from strapdown_ros.core.imu_errors import ImuErrorParameters
 
 __all__ = [
     "IMU_ERROR_KEYS",
@@ -34,6 +28,13 @@ __all__ = [
     "ImuErrorsSpec",
     "check_imu_errors",
 ]
+
+#: Standard gravity (m/s², the conventional value of CGPM 1901), the ``g`` of the ``mg`` and
+#: ``_g`` units; the same constant as :data:`strapdown_ros.core.imu_errors.G0`.
+G0 = 9.80665
+#: (row, column) of the 6 misalignment values ``[xy, xz, yx, yz, zx, zy]`` in the 3x3 matrix
+#: (:func:`strapdown_ros.core.imu_errors.misalignment_matrix` has the same order).
+MISALIGNMENT_ORDER = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 
 _DEG = math.pi / 180.0
 _DPH = _DEG / 3600.0  # deg/h -> rad/s
@@ -189,7 +190,7 @@ Sign = Literal["any", "nonneg", "positive"]
 
 def _number(value: Any, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(key, f"must be a number, got {type(value).__name__} {value!r}")
+        raise ScenarioError(key, f"must be a number, got {type(value).__name__} {shorten(value)}")
     value = float(value)
     if not math.isfinite(value):
         raise ScenarioError(key, f"must be finite, got {value}")
@@ -209,12 +210,20 @@ def _array(value: Any, sign: Sign) -> np.ndarray:
     try:
         a = np.array(numbers, dtype=np.float64)
     except ValueError:
-        raise ValueError(f"ragged nested list {value!r}") from None
+        raise ValueError(f"ragged nested list {shorten(value)}") from None
     if sign == "nonneg" and np.any(a < 0):
-        raise ValueError(f"must be >= 0, got {value!r}")
+        raise ValueError(f"must be >= 0, got {shorten(value)}")
     if sign == "positive" and np.any(a <= 0):
-        raise ValueError(f"must be > 0, got {value!r}")
+        raise ValueError(f"must be > 0, got {shorten(value)}")
     return a
+
+
+def _misalignment_matrix(values: np.ndarray) -> np.ndarray:
+    """The 3x3 misalignment (zero diagonal) of the 6 values ``[xy, xz, yx, yz, zx, zy]``."""
+    m = np.zeros((3, 3))
+    for k, (i, j) in enumerate(MISALIGNMENT_ORDER):
+        m[i, j] = values[k]
+    return m
 
 
 def _matrix(a: np.ndarray) -> Matrix3:
@@ -232,7 +241,7 @@ def _axes(sign: Sign) -> Callable[[Any], Axes | None]:
             return (float(a),) * 3  # type: ignore[return-value]
         if a.shape == (3,):
             return tuple(float(x) for x in a)  # type: ignore[return-value]
-        raise ValueError(f"must be a number or a list of 3 numbers, got {value!r}")
+        raise ValueError(f"must be a number or a list of 3 numbers, got {shorten(value)}")
 
     return convert
 
@@ -248,7 +257,7 @@ def _misalignment(scalar: bool, sign: Sign) -> Callable[[Any], Matrix3 | None]:
         if a.shape == () and scalar:
             a = np.full(6, float(a))
         if a.shape == (6,):
-            return _matrix(misalignment_matrix(a))
+            return _matrix(_misalignment_matrix(a))
         if a.shape == (3, 3):
             if np.any(np.diag(a) != 0):
                 raise ValueError(
@@ -258,7 +267,7 @@ def _misalignment(scalar: bool, sign: Sign) -> Callable[[Any], Matrix3 | None]:
         number = "a number, " if scalar else ""
         raise ValueError(
             f"must be {number}6 values [xy, xz, yx, yz, zx, zy] or a 3x3 matrix with zero "
-            f"diagonal, got {value!r}"
+            f"diagonal, got {shorten(value)}"
         )
 
     return convert
@@ -275,7 +284,7 @@ def _full_matrix(value: Any) -> Matrix3 | None:
         return _matrix(np.diag(a))
     if a.shape == (3, 3):
         return _matrix(a)
-    raise ValueError(f"must be a number, a list of 3 or a 3x3 matrix, got {value!r}")
+    raise ValueError(f"must be a number, a list of 3 or a 3x3 matrix, got {shorten(value)}")
 
 
 #: Per-axis value of any sign, of a value >= 0, of a value > 0.
@@ -293,7 +302,7 @@ def _topic(value: Any) -> Any:
     if value is not None and (
         not isinstance(value, str) or not value.startswith("/") or " " in value
     ):
-        raise ValueError(f"must be an absolute topic name, got {value!r}")
+        raise ValueError(f"must be an absolute topic name, got {shorten(value)}")
     return value
 
 
@@ -349,7 +358,7 @@ class ImuErrorsSpec(Model):
     @classmethod
     def _seed(cls, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise ValueError(f"must be an integer >= 0, got {value!r}")
+            raise ValueError(f"must be an integer >= 0, got {shorten(value)}")
         return value
 
     @model_validator(mode="after")
@@ -368,6 +377,8 @@ class ImuErrorsSpec(Model):
 
     def parameters(self) -> ImuErrorParameters:
         """The model's parameters: both triads in SI units (rad/s, m/s², rad, s), FRD axes."""
+        from strapdown_ros.core.imu_errors import ImuErrorParameters, SensorErrors
+
         zero = SensorErrors.zero()
         fields: dict[str, dict[str, np.ndarray]] = {"gyro": {}, "accel": {}}
         for key, (sensor, name, factor) in SENSOR_KEYS.items():
@@ -391,17 +402,20 @@ class ImuErrorsSpec(Model):
         )
 
 
-def generated_imu_topics(scenario: Scenario) -> list[str]:
-    """The ideal IMU topics ``scenario`` generates: the reference IMU, and the variation ones
-    with a ``variation`` section."""
+def generated_imu_topics(topics: Mapping[str, str], variation: bool) -> list[str]:
+    """The ideal IMU topics a scenario generates (``topics``: its ``recording.topics``): the
+    reference IMU, and the variation ones when it has a ``variation`` section."""
     keys = ["reference_imu"]
-    if scenario.variation is not None:
+    if variation:
         keys += ["variation_imu", "variation_reference_imu"]
-    return [scenario.recording.topics[k] for k in keys]
+    return [topics[k] for k in keys]
 
 
-def check_imu_errors(scenario: Scenario) -> None:
-    """Cross-field rules of ``imu_errors`` (called by the scenario's validation).
+def check_imu_errors(
+    spec: ImuErrorsSpec | None, topics: Mapping[str, str], *, variation: bool
+) -> None:
+    """Cross-field rules of ``imu_errors`` (called by the scenario's validation with the
+    ``recording.topics`` and whether the scenario has a ``variation`` section).
 
     ``imu_errors.input_topic`` must be an ideal IMU topic the scenario generates and
     ``imu_errors.output_topic`` must not be another stream's topic.
@@ -411,12 +425,10 @@ def check_imu_errors(scenario: Scenario) -> None:
     ScenarioError
         Naming ``imu_errors.input_topic`` or ``imu_errors.output_topic``.
     """
-    spec = scenario.imu_errors
     if spec is None:
         return
-    topics = scenario.recording.topics
     input_topic, output_topic = spec.topics(topics)
-    generated = generated_imu_topics(scenario)
+    generated = generated_imu_topics(topics, variation)
     if input_topic not in generated:
         raise ScenarioError(
             "imu_errors.input_topic",

@@ -8,8 +8,8 @@ them in. Keys: docs/scenarios.md; the navigator: docs/navigator.md.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from collections.abc import Collection, Mapping
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,10 +22,8 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    shorten,
 )
-
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
 
 __all__ = [
     "INPUT_STREAMS",
@@ -34,7 +32,6 @@ __all__ = [
     "NavigatorSpec",
     "VerticalDampingSpec",
     "check_navigator",
-    "navigator_spec",
     "resolve_navigator",
 ]
 
@@ -126,21 +123,21 @@ class NavigatorSpec(Model):
     @classmethod
     def _imu_topic(cls, value: Any) -> Any:
         if not isinstance(value, str) or not value.startswith("/"):
-            raise ValueError(f"must be an absolute topic, got {value!r}")
+            raise ValueError(f"must be an absolute topic, got {shorten(value)}")
         return value
 
     @field_validator("truth_topic", mode="before")
     @classmethod
     def _truth_topic(cls, value: Any) -> Any:
         if not isinstance(value, str) or (value and not value.startswith("/")):
-            raise ValueError(f"must be an absolute topic or empty, got {value!r}")
+            raise ValueError(f"must be an absolute topic or empty, got {shorten(value)}")
         return value
 
     @field_validator("frame_id", mode="before")
     @classmethod
     def _frame_id(cls, value: Any) -> Any:
         if not isinstance(value, str) or not value or " " in value:
-            raise ValueError(f"must be a frame id, got {value!r}")
+            raise ValueError(f"must be a frame id, got {shorten(value)}")
         return value
 
     @field_validator("vertical_damping", mode="before")
@@ -151,7 +148,7 @@ class NavigatorSpec(Model):
         if value is False:
             return None
         if not isinstance(value, Mapping):
-            raise ValueError(f"must be true, false or a mapping, got {value!r}")
+            raise ValueError(f"must be true, false or a mapping, got {shorten(value)}")
         return value
 
     @model_validator(mode="after")
@@ -225,7 +222,7 @@ def resolve_navigator(
     spec: NavigatorSpec,
     topics: Mapping[str, str],
     gravity_model: str,
-    scenario: Scenario | None = None,
+    sections: Collection[str] | None = None,
 ) -> NavigatorSpec:
     """``spec`` with its scenario-dependent defaults filled in, checked against the scenario.
 
@@ -237,44 +234,36 @@ def resolve_navigator(
         ``recording.topics`` (stream key → topic name).
     gravity_model : str
         The default gravitation model (the scenario's).
-    scenario : Scenario, optional
-        With a scenario, the input must be one of its IMU streams (with the section that stream
-        needs) and ``initialization: scenario`` needs its ``initial``. None: not checked
-        (``navigator_node`` without a scenario).
+    sections : collection of str, optional
+        The optional parts the scenario has (``Scenario.sections()``: ``initial``,
+        ``variation``, ``imu_errors``, ...). Given, the input must be one of the scenario's IMU
+        streams (with the section that stream needs) and ``initialization: scenario`` needs
+        ``initial``. None: not checked (``navigator_node`` without a scenario).
 
     Raises
     ------
     ScenarioError
         Naming the key (``navigator.imu_topic: ...``).
     """
-    if scenario is not None:
+    if sections is not None:
         imu = spec.imu_topic or topics["variation_imu"]
         key = topic_key(topics, imu)
         if key not in INPUT_STREAMS:
             names = ", ".join(topics[k] for k in INPUT_STREAMS if k in topics)
             raise ScenarioError(
-                "navigator.imu_topic", f"{imu!r} is not an IMU stream; one of: {names}"
+                "navigator.imu_topic", f"{shorten(imu)} is not an IMU stream; one of: {names}"
             )
         needs = INPUT_STREAMS[key][1]
-        if needs is not None and getattr(scenario, needs) is None:
+        if needs is not None and needs not in sections:
             raise ScenarioError(
-                "navigator.imu_topic", f"{imu!r} needs a '{needs}' section in the scenario"
+                "navigator.imu_topic", f"{shorten(imu)} needs a '{needs}' section in the scenario"
             )
     resolved = spec._resolve(topics, gravity_model)
-    if scenario is not None and resolved.initialization == "scenario" and scenario.initial is None:
+    if sections is not None and resolved.initialization == "scenario" and "initial" not in sections:
         raise ScenarioError(
             "navigator.initialization", "'scenario' needs the scenario's 'initial' state"
         )
     return resolved
-
-
-def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:
-    """The scenario's ``navigator`` section, resolved (None without one)."""
-    if scenario.navigator is None:
-        return None
-    return resolve_navigator(
-        scenario.navigator, scenario.recording.topics, scenario.gravity_model, scenario
-    )
 
 
 #: Truth Odometry stream key → the section it needs.
@@ -285,25 +274,26 @@ TRUTH_STREAMS: dict[str, str | None] = {
 }
 
 
-def check_navigator(scenario: Scenario) -> None:
-    """Cross-field rules of ``navigator`` (called by the scenario's validation): those of
-    :func:`resolve_navigator`, and the truth topic must be an Odometry stream the scenario
-    produces (``generate`` has no other)."""
-    spec = navigator_spec(scenario)
+def check_navigator(
+    spec: NavigatorSpec | None, topics: Mapping[str, str], sections: Collection[str]
+) -> None:
+    """Cross-field rules of ``navigator`` beyond those of :func:`resolve_navigator` (called by
+    the scenario's validation with the resolved section, the recording topics and the
+    scenario's sections): the truth topic must be an Odometry stream the scenario produces
+    (``generate`` has no other)."""
     if spec is None or not spec.truth_topic:
         return
-    topics = scenario.recording.topics
     key = topic_key(topics, spec.truth_topic)
     if key not in TRUTH_STREAMS:
         names = ", ".join(topics[k] for k in TRUTH_STREAMS)
         raise ScenarioError(
             "navigator.truth_topic",
-            f"{spec.truth_topic!r} is not an Odometry stream of the scenario; one of: {names} "
-            "(or empty: none)",
+            f"{shorten(spec.truth_topic)} is not an Odometry stream of the scenario; one of: "
+            f"{names} (or empty: none)",
         )
     needs = TRUTH_STREAMS[key]
-    if needs is not None and getattr(scenario, needs) is None:
+    if needs is not None and needs not in sections:
         raise ScenarioError(
             "navigator.truth_topic",
-            f"{spec.truth_topic!r} needs a '{needs}' section in the scenario",
+            f"{shorten(spec.truth_topic)} needs a '{needs}' section in the scenario",
         )

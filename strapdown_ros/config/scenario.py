@@ -21,21 +21,28 @@ from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from strapdown_ros.config.aiding import AidingSpec, check_aiding
 from strapdown_ros.config.base import (
-    Finite,
     Model,
     NonNegative,
     Positive,
     ScenarioError,
     StrictBool,
     StrictInt,
-    Vector3,
+    shorten,
     validate_section,
 )
 from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
-from strapdown_ros.config.navigator import NavigatorSpec, check_navigator
+from strapdown_ros.config.initial import Initial
+from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resolve_navigator
 from strapdown_ros.config.tf import TFSpec, check_tf
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
+from strapdown_ros.config.yaml_limits import (
+    MAX_BYTES,
+    LimitError,
+    check_document,
+    load_yaml,
+    too_large,
+)
 
 __all__ = [
     "DEFAULT_FRAMES",
@@ -46,7 +53,9 @@ __all__ = [
     "ScenarioError",
     "apply_overrides",
     "load_scenario",
+    "navigator_spec",
     "parse_scenario",
+    "tf_spec",
 ]
 
 GRAVITY_MODELS = ("j2", "spherical")
@@ -85,26 +94,6 @@ DEFAULT_FRAMES: dict[str, str] = {
 }
 
 
-class Initial(Model):
-    """Initial state: geodetic position (WGS-84, ellipsoidal altitude), NED velocity (m/s),
-    roll/pitch/heading of the body FRD axes w.r.t. NED (deg)."""
-
-    # ±90° here; the segments and coning kinds need ±89.9° (their latitude integrates
-    # 1/cos φ): config.trajectory.check_trajectory.
-    latitude_deg: Annotated[Finite, Field(ge=-90.0, le=90.0)]
-    longitude_deg: Annotated[Finite, Field(ge=-180.0, le=360.0)]
-    altitude_m: Annotated[Finite, Field(ge=-10_000.0, le=1_000_000.0)] = 0.0
-    velocity_ned_mps: Vector3 = (0.0, 0.0, 0.0)
-    attitude_rph_deg: Vector3 = (0.0, 0.0, 0.0)
-
-    @field_validator("attitude_rph_deg")
-    @classmethod
-    def _pitch(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
-        if abs(value[1]) >= 90.0:
-            raise ScenarioError("[1]", f"pitch must be within ±90°, got {value[1]}")
-        return value
-
-
 def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]:
     if value is None:
         value = {}
@@ -116,9 +105,9 @@ def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]
             raise ScenarioError(str(key), "unknown key; expected one of: " + ", ".join(defaults))
         if what == "topic" and (not isinstance(name, str) or not name.startswith("/")
                                 or " " in name):  # fmt: skip
-            raise ScenarioError(str(key), f"must be an absolute topic name, got {name!r}")
+            raise ScenarioError(str(key), f"must be an absolute topic name, got {shorten(name)}")
         if what == "frame" and (not isinstance(name, str) or not name or " " in name):
-            raise ScenarioError(str(key), f"must be a frame id, got {name!r}")
+            raise ScenarioError(str(key), f"must be a frame id, got {shorten(name)}")
         out[str(key)] = name
     return out
 
@@ -146,6 +135,13 @@ class Recording(Model):
 
 def _is_integer_ns(value: float) -> bool:
     return abs(value - round(value)) <= 1e-6 * max(1.0, abs(value)) * 1e-3
+
+
+#: the section fields that name a topic of ``recording.topics`` (followed by renames)
+_TOPIC_FIELDS: dict[str, tuple[str, ...]] = {
+    "navigator": ("imu_topic", "truth_topic"),
+    "imu_errors": ("input_topic", "output_topic"),
+}
 
 
 class Scenario(Model):
@@ -204,8 +200,23 @@ class Scenario(Model):
         return copy_
 
     def with_recording(self, **changes: Any) -> Scenario:
-        """A copy with ``recording`` fields replaced (e.g. topics renamed by node parameters)."""
-        return self.model_copy(update={"recording": self.recording.model_copy(update=changes)})
+        """A copy with ``recording`` fields replaced (e.g. topics renamed by node parameters).
+        A section that names a renamed topic (``navigator.imu_topic``, ``imu_errors.input_topic``
+        ...) follows the rename: it names the same stream under its new name."""
+        update: dict[str, Any] = {"recording": self.recording.model_copy(update=changes)}
+        if "topics" in changes:
+            old, new = self.recording.topics, changes["topics"]
+            renamed = {old[k]: new[k] for k in old if k in new and new[k] != old[k]}
+            for section, fields in _TOPIC_FIELDS.items():
+                spec = getattr(self, section)
+                moved = {
+                    f: renamed[getattr(spec, f)]
+                    for f in fields
+                    if spec is not None and getattr(spec, f) in renamed
+                }
+                if moved:
+                    update[section] = spec.model_copy(update=moved)
+        return self.model_copy(update=update)
 
     # -- cross-field rules ---------------------------------------------------------------------
 
@@ -213,7 +224,7 @@ class Scenario(Model):
     @classmethod
     def _text(cls, value: Any) -> Any:
         if value is not None and not isinstance(value, str):
-            raise ValueError(f"must be a string, got {value!r}")
+            raise ValueError(f"must be a string, got {shorten(value)}")
         return value
 
     @field_validator("rate_hz")
@@ -235,13 +246,47 @@ class Scenario(Model):
                 f"the generation period T/oversample = {self.period_ns}/{self.oversample} ns is "
                 "not an integer number of nanoseconds",
             )
-        check_trajectory(self)
-        check_imu_errors(self)
-        check_aiding(self)
-        check_navigator(self)
-        check_variation(self)
-        check_tf(self)
+        topics = self.recording.topics
+        check_trajectory(self.trajectory, self.initial, self.generation_period_ns)
+        check_imu_errors(self.imu_errors, topics, variation=self.variation is not None)
+        check_aiding(
+            self.aiding,
+            period_ns=self.period_ns,
+            start_time_s=self.start_time_s,
+            start_time_ns=self.start_time_ns,
+            topics=topics,
+        )
+        navigator = navigator_spec(self)
+        check_navigator(navigator, topics, self.sections())
+        check_variation(self.variation, self.rate_hz)
+        check_tf(
+            tf_spec(self),
+            self.period_ns,
+            None if navigator is None else self.period_ns * navigator.n,
+        )
         return self
+
+    def sections(self) -> frozenset[str]:
+        """Names of the optional parts the scenario has (``initial``, ``variation``,
+        ``navigator``, ``imu_errors``, ``tf``, ``aiding``): what the cross-section rules of
+        :func:`~strapdown_ros.config.navigator.resolve_navigator` ask about."""
+        names = ("initial", "variation", "navigator", "imu_errors", "tf", "aiding")
+        return frozenset(n for n in names if getattr(self, n) is not None)
+
+
+def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:
+    """The scenario's ``navigator`` section, resolved (None without one)."""
+    if scenario.navigator is None:
+        return None
+    return resolve_navigator(
+        scenario.navigator, scenario.recording.topics, scenario.gravity_model, scenario.sections()
+    )
+
+
+def tf_spec(scenario: Scenario) -> TFSpec:
+    """The scenario's ``tf`` section, defaults when it has none."""
+    spec = getattr(scenario, "tf", None)
+    return spec if isinstance(spec, TFSpec) else TFSpec()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -258,9 +303,13 @@ def parse_scenario(document: Any, path: Path | None = None) -> Scenario:
     """
     if not isinstance(document, Mapping):
         raise ScenarioError("", f"the top level must be a mapping, got {type(document).__name__}")
+    try:
+        check_document(document)
+    except LimitError as exc:
+        raise ScenarioError("", f"the scenario {exc.problem}") from None
     for key in document:
         if not isinstance(key, str):
-            raise ScenarioError("", f"keys must be strings, got {key!r}")
+            raise ScenarioError("", f"keys must be strings, got {shorten(key)}")
     if "trajectory" in document and not isinstance(document["trajectory"], Mapping):
         value = document["trajectory"]
         raise ScenarioError("trajectory", f"must be a mapping, got {type(value).__name__}")
@@ -292,9 +341,11 @@ def apply_overrides(document: dict[str, Any], overrides: Iterable[str]) -> dict[
         dotted, text = item.split("=", 1)
         dotted = dotted.strip()
         try:
-            value = yaml.safe_load(text)
+            value = load_yaml(text)
+        except LimitError as exc:
+            raise ScenarioError(dotted, f"the value {exc}") from None
         except yaml.YAMLError as exc:
-            raise ScenarioError(dotted, f"value {text!r} is not valid YAML: {exc}") from None
+            raise ScenarioError(dotted, f"value {shorten(text)} is not valid YAML: {exc}") from None
         parts = _parse_path(dotted)
         node: Any = doc
         for i, part in enumerate(parts[:-1]):
@@ -324,13 +375,20 @@ def read_document(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise ScenarioError("", f"scenario file not found: {path}")
     try:
-        text = path.read_bytes().decode("utf-8")
+        with path.open("rb") as file:  # no further than the limit
+            data = file.read(MAX_BYTES + 1)
+            size = max(len(data), path.stat().st_size)
+        if size > MAX_BYTES:
+            raise ScenarioError("", f"{path} {too_large(size)}")
+        text = data.decode("utf-8")
     except OSError as exc:
         raise ScenarioError("", f"cannot read {path}: {exc.strerror or exc}") from None
     except UnicodeDecodeError:
         raise ScenarioError("", f"{path} is not UTF-8 text (a scenario is a YAML file)") from None
     try:
-        document = yaml.safe_load(text)
+        document = load_yaml(text)
+    except LimitError as exc:
+        raise ScenarioError("", f"{path} {exc}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -361,6 +419,6 @@ def load_scenario(
     document = apply_overrides(read_document(path), overrides)
     if duration_s is not None:
         if not isinstance(duration_s, int | float) or not math.isfinite(duration_s):
-            raise ScenarioError("duration_s", f"must be a finite number, got {duration_s!r}")
+            raise ScenarioError("duration_s", f"must be a finite number, got {shorten(duration_s)}")
         document["duration_s"] = duration_s
     return parse_scenario(document, path.resolve())

@@ -16,16 +16,13 @@ Keys (all optional; the section may be absent):
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 from pydantic import Field
 
 from strapdown_ros.config.base import Finite, Model, Positive, ScenarioError, StrictBool
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
-
-__all__ = ["DatumSpec", "TFSpec", "check_tf", "tf_spec"]
+__all__ = ["DatumSpec", "TFSpec", "check_tf"]
 
 
 class DatumSpec(Model):
@@ -46,12 +43,6 @@ class TFSpec(Model):
     map_odometry: StrictBool = True
 
 
-def tf_spec(scenario: Scenario) -> TFSpec:
-    """The scenario's ``tf`` section, defaults when it has none."""
-    spec = getattr(scenario, "tf", None)
-    return spec if isinstance(spec, TFSpec) else TFSpec()
-
-
 def _decimation(rate_hz: float, base_period_ns: int, key: str, what: str) -> None:
     period = 1e9 / rate_hz
     ratio = period / base_period_ns
@@ -63,21 +54,18 @@ def _decimation(rate_hz: float, base_period_ns: int, key: str, what: str) -> Non
         )
 
 
-def check_tf(scenario: Scenario) -> None:
-    """Cross-field rules of ``tf``: the rates divide the truth and navigation rates, and a
-    datum exists (given, or the scenario's initial position)."""
-    spec = tf_spec(scenario)
+def check_tf(spec: TFSpec, period_ns: int, navigation_period_ns: int | None) -> None:
+    """Cross-field rules of ``tf`` (the section or its defaults): the rates divide the truth
+    rate (period ``period_ns``) and the navigation rate (period ``navigation_period_ns``, None
+    without a navigator)."""
     if spec.body_rate_hz is not None:
-        _decimation(spec.body_rate_hz, scenario.period_ns, "tf.body_rate_hz", "truth rate")
+        _decimation(spec.body_rate_hz, period_ns, "tf.body_rate_hz", "truth rate")
     if spec.navigator_rate_hz is not None:
-        from strapdown_ros.config.navigator import navigator_spec
-
-        nav = navigator_spec(scenario)
-        if nav is None:
+        if navigation_period_ns is None:
             raise ScenarioError("tf.navigator_rate_hz", "the scenario has no navigator")
         _decimation(
             spec.navigator_rate_hz,
-            scenario.period_ns * nav.n,
+            navigation_period_ns,
             "tf.navigator_rate_hz",
             "navigation rate",
         )

@@ -4,7 +4,7 @@
 file uses (deg, deg/s, ...) and converts them to the SI arguments of its core model
 (:mod:`strapdown_ros.core.trajectory`): ``build`` for segments and coning, ``core_segments``
 for increments, ``fit_options`` for samples (whose samples are read by
-:mod:`strapdown_ros.stages.reference`). :func:`check_trajectory` holds the rules that need the
+:mod:`strapdown_ros.stages.trajectory`). :func:`check_trajectory` holds the rules that need the
 rest of the scenario (``initial``, the generation period). Problems only found while building
 (a segment decelerating past standstill, knots the samples cannot support) come back from the
 core as :class:`~strapdown_ros.core.trajectory.base.TrajectoryError`; :meth:`key_of` of each
@@ -28,7 +28,9 @@ from strapdown_ros.config.base import (
     ScenarioError,
     Vector3,
     join_key,
+    shorten,
 )
+from strapdown_ros.config.initial import Initial
 from strapdown_ros.core.trajectory.base import TrajectoryError
 from strapdown_ros.core.trajectory.coning import (
     AMPLITUDE_DEFAULT,
@@ -40,7 +42,6 @@ from strapdown_ros.core.trajectory.coning import (
     lowest_altitude,
 )
 from strapdown_ros.core.trajectory.increments import IncrementSegment, whole_cycles
-from strapdown_ros.core.trajectory.samples import FitOptions, SplineOptions, Weights
 from strapdown_ros.core.trajectory.segments import (
     ALTITUDE_MIN,
     LATITUDE_LIMIT,
@@ -48,10 +49,9 @@ from strapdown_ros.core.trajectory.segments import (
     Segment,
     SegmentsTrajectory,
 )
-from strapdown_ros.inputs.samples import CSV_NAMES
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Initial, Scenario
+if TYPE_CHECKING:  # imported by fit_options(): the spline fit loads numba
+    from strapdown_ros.core.trajectory.samples import FitOptions
 
 __all__ = [
     "KINDS",
@@ -65,11 +65,17 @@ __all__ = [
     "SegmentsTrajectorySpec",
     "TrajectorySpec",
     "WeightsSpec",
+    "MAX_DURATION_S",
     "check_trajectory",
     "core_initial",
 ]
 
 KINDS = ("segments", "samples", "increments", "coning")
+#: Longest trajectory (s, about 116 days) of the kinds whose section gives its length
+#: (segments, increments, coning). The segments and coning models solve latitude and longitude
+#: over the whole path at once, in memory and time proportional to its length (1e7 s of
+#: straight flight: about 2 GB and half a minute); a longer path is refused before any of it.
+MAX_DURATION_S = 1.0e7
 FITS = ("position", "attitude")
 
 
@@ -392,15 +398,15 @@ class PerFit(Model):
 
 def _number(value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"must be a number, got {type(value).__name__} {value!r}")
+        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
     if not math.isfinite(value):
-        raise ValueError(f"must be finite, got {value!r}")
+        raise ValueError(f"must be finite, got {shorten(value)}")
     return float(value)
 
 
 def _integer(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
-        raise ValueError(f"must be an integer, got {type(value).__name__} {value!r}")
+        raise ValueError(f"must be an integer, got {type(value).__name__} {shorten(value)}")
     return int(value)
 
 
@@ -437,7 +443,9 @@ def _knots(value: Any) -> float | tuple[float, ...] | None:
         return _list(value, _number)
     spacing = _number(value)
     if spacing <= 0.0:
-        raise ValueError(f"must be > 0 (a spacing in s) or a list of breakpoints, got {value!r}")
+        raise ValueError(
+            f"must be > 0 (a spacing in s) or a list of breakpoints, got {shorten(value)}"
+        )
     return spacing
 
 
@@ -458,7 +466,7 @@ def _continuity(value: Any) -> int | tuple[int, ...] | None:
 
 def _break(value: Any) -> tuple[float, int]:
     if not isinstance(value, Mapping):
-        raise ValueError(f"must be a mapping {{t_s: <s>, continuity: <int>}}, got {value!r}")
+        raise ValueError(f"must be a mapping {{t_s: <s>, continuity: <int>}}, got {shorten(value)}")
     for key in value:
         if key not in ("t_s", "continuity"):
             raise ScenarioError(str(key), "unknown key; expected one of: t_s, continuity")
@@ -473,7 +481,7 @@ def _break(value: Any) -> tuple[float, int]:
 
 def _breaks(value: Any) -> tuple[tuple[float, int], ...]:
     if not _is_list(value):
-        raise ValueError(f"must be a list of {{t_s, continuity}}, got {value!r}")
+        raise ValueError(f"must be a list of {{t_s, continuity}}, got {shorten(value)}")
     return _list(value, _break)
 
 
@@ -539,6 +547,8 @@ class SamplesTrajectorySpec(Model):
     @field_validator("columns")
     @classmethod
     def _columns(cls, value: dict[str, str] | None) -> dict[str, str] | None:
+        from strapdown_ros.inputs.samples import CSV_NAMES
+
         for name in value or {}:
             if name not in CSV_NAMES:
                 raise ScenarioError(
@@ -624,6 +634,7 @@ class SamplesTrajectorySpec(Model):
 
     def fit_options(self) -> FitOptions:
         """The core fitting options."""
+        from strapdown_ros.core.trajectory.samples import FitOptions, SplineOptions, Weights
 
         def spline(fit: str) -> SplineOptions:
             return SplineOptions(
@@ -659,7 +670,7 @@ def _kind(value: Any) -> Any:
             raise ScenarioError("kind", "is required; one of: " + ", ".join(KINDS))
         if value["kind"] not in KINDS:
             raise ScenarioError(
-                "kind", f"must be one of: {', '.join(KINDS)}; got {value['kind']!r}"
+                "kind", f"must be one of: {', '.join(KINDS)}; got {shorten(value['kind'])}"
             )
     return value
 
@@ -675,8 +686,11 @@ TrajectorySpec = Annotated[
 ]
 
 
-def check_trajectory(scenario: Scenario) -> None:
-    """Rules of ``trajectory`` that need the rest of the scenario (called by its validation).
+def check_trajectory(
+    spec: TrajectorySpec, initial: Initial | None, generation_period_ns: int
+) -> None:
+    """Rules of ``trajectory`` that need the rest of the scenario (called by its validation
+    with the scenario's ``initial`` and its generation period T / oversample in ns).
 
     * ``initial`` is required for every kind but ``samples`` (the samples define the start).
     * ``segments`` and ``coning``: ``|initial.latitude_deg| <= 89.9``. Their latitude and
@@ -690,18 +704,25 @@ def check_trajectory(scenario: Scenario) -> None:
     * ``coning``: the CM starts at rest (``initial.velocity_ned_mps`` zero, Waldmann §6) and its
       sinusoidal descent may not take it below -10 km.
     * ``increments``: every segment is a whole number of generation cycles (T / oversample).
+    * ``segments``, ``increments``, ``coning``: at most :data:`MAX_DURATION_S` in total.
 
     Raises
     ------
     ScenarioError
         Naming the key.
     """
-    spec = scenario.trajectory
-    initial = scenario.initial
     if isinstance(spec, SamplesTrajectorySpec):
         return
     if initial is None:
         raise ScenarioError("initial", "is required")
+    if spec.natural_duration > MAX_DURATION_S:
+        key = "trajectory.coning.duration_s" if spec.kind == "coning" else "trajectory.segments"
+        what = "lasts {:g} s" if spec.kind == "coning" else "the segments last {:g} s in total"
+        raise ScenarioError(
+            key,
+            what.format(spec.natural_duration) + f", more than the {MAX_DURATION_S:g} s (about "
+            f"116 days) a {spec.kind} trajectory may last",
+        )
     if isinstance(spec, SegmentsTrajectorySpec | ConingTrajectorySpec):
         limit = math.degrees(LATITUDE_LIMIT)
         if abs(initial.latitude_deg) > limit:
@@ -740,7 +761,7 @@ def check_trajectory(scenario: Scenario) -> None:
                     f"altitude would fall to {low:.1f} m, below -10 km",
                 )
     if isinstance(spec, IncrementsTrajectorySpec):
-        period_ns = scenario.generation_period_ns
+        period_ns = generation_period_ns
         for i, seg in enumerate(spec.segments):
             if whole_cycles(seg.duration_s, period_ns) is None:
                 raise ScenarioError(

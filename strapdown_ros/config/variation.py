@@ -22,19 +22,12 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    shorten,
 )
-from strapdown_ros.core.offsets import (
-    OffsetModel,
-    RandomBending,
-    RasterScan,
-    SegmentsScan,
-    SweepScan,
-    bending_sinusoids,
-)
-from strapdown_ros.core.scan_filter import LinearFilter
 
-if TYPE_CHECKING:
-    from strapdown_ros.config.scenario import Scenario
+if TYPE_CHECKING:  # the core models are imported where they are built (scipy.signal)
+    from strapdown_ros.core.offsets import OffsetModel, RasterScan, SegmentsScan, SweepScan
+    from strapdown_ros.core.scan_filter import LinearFilter
 
 __all__ = [
     "DEFAULT_RANDOM_COMPONENTS",
@@ -94,7 +87,7 @@ class RandomBendingSpec(_Section):
     @classmethod
     def _nonnegative(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
         if any(x < 0 for x in value):
-            raise ValueError(f"must be >= 0, got {list(value)!r}")
+            raise ValueError(f"must be >= 0, got {shorten(list(value))}")
         return value
 
 
@@ -146,7 +139,7 @@ class SweepScanSpec(_Section):
     @classmethod
     def _nonzero(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
         if not any(value):
-            raise ValueError(f"must not be zero, got {list(value)!r}")
+            raise ValueError(f"must not be zero, got {shorten(list(value))}")
         return value
 
     def max_rate_dps(self) -> float:
@@ -195,6 +188,8 @@ class GeneralFilter(_Section):
 
     @model_validator(mode="after")
     def _exact_and_stable(self) -> GeneralFilter:
+        from strapdown_ros.core.scan_filter import LinearFilter
+
         try:
             LinearFilter(self.a, self.b)
         except ValueError as exc:
@@ -248,15 +243,17 @@ class VariationSpec(_Section):
     @classmethod
     def _integer_method(cls, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"must be 1 or 2, got {value!r}")
+            raise ValueError(f"must be 1 or 2, got {shorten(value)}")
         if value not in (1, 2):
-            raise ValueError(f"must be 1 or 2, got {value!r}")
+            raise ValueError(f"must be 1 or 2, got {shorten(value)}")
         return value
 
     # -- build the core model ------------------------------------------------------------------
 
     def offset_model(self) -> OffsetModel:
         """The offsets as functions of time (:class:`~strapdown_ros.core.offsets.OffsetModel`)."""
+        from strapdown_ros.core.offsets import OffsetModel, RandomBending, bending_sinusoids
+
         bending = self.bending or Bending()
         random = None
         if bending.random is not None:
@@ -279,6 +276,8 @@ class VariationSpec(_Section):
         )
 
     def _scan(self) -> SegmentsScan | SweepScan | RasterScan | None:
+        from strapdown_ros.core.offsets import RasterScan, SegmentsScan, SweepScan
+
         s = self.scan
         if s is None:
             return None
@@ -303,6 +302,8 @@ class VariationSpec(_Section):
         )
 
     def _filter(self) -> LinearFilter | None:
+        from strapdown_ros.core.scan_filter import LinearFilter
+
         f = self.filter
         if isinstance(f, NoFilter):
             return None
@@ -311,8 +312,8 @@ class VariationSpec(_Section):
         return LinearFilter(f.a, f.b)
 
 
-def check_variation(scenario: Scenario) -> None:
-    """Rules of the ``variation`` section that need the rest of the scenario.
+def check_variation(spec: VariationSpec | None, rate_hz: float) -> None:
+    """Rules of the ``variation`` section that need the scenario's output rate ``rate_hz``.
 
     The scan may turn less than 180° per output cycle: the increments of the attitude offset
     (eq. (D-2)) and of the variation's attitude are extracted as rotations below π, so a faster
@@ -323,10 +324,9 @@ def check_variation(scenario: Scenario) -> None:
     ScenarioError
         Naming the key (``variation.scan.rate_dps: ...``).
     """
-    spec = scenario.variation
     if spec is None or spec.scan is None:
         return
-    limit = 180.0 * scenario.rate_hz  # deg/s: half a turn per cycle
+    limit = 180.0 * rate_hz  # deg/s: half a turn per cycle
     rate = spec.scan.max_rate_dps()
     if rate >= limit:
         key = {"segments": "segments", "sweep": "rate_dps", "raster": "rate_dps"}[spec.scan.kind]
@@ -335,5 +335,5 @@ def check_variation(scenario: Scenario) -> None:
         raise ScenarioError(
             f"variation.scan.{key}",
             f"the scan turns {rate:g} deg/s, at least 180 deg per cycle at rate_hz "
-            f"{scenario.rate_hz:g} (limit < {limit:g} deg/s)",
+            f"{rate_hz:g} (limit < {limit:g} deg/s)",
         )

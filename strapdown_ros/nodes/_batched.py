@@ -2,7 +2,7 @@
 
 :class:`BatchedInputNode` holds what the three nodes do alike: the start-up handshake (wait for
 the output subscriptions, then subscribe), input in batches (:class:`~strapdown_ros.nodes.
-_common.InputBatch`), the stop conditions (done, ``idle_timeout_s``, a failure, a signal), the
+batching.InputBatch`), the stop conditions (done, ``idle_timeout_s``, a failure, a signal), the
 summary and the drain of the publishers. A subclass says what its input, processing and summary
 are by overriding the hooks below.
 """
@@ -19,17 +19,18 @@ import rclpy
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
-from strapdown_ros.nodes._common import (
+from strapdown_ros.nodes.batching import InputBatch, declare_batch_period
+from strapdown_ros.nodes.handshake import wait_for_subscriptions
+from strapdown_ros.nodes.lifecycle import (
     EXIT_FAILURE,
     EXIT_OK,
-    InputBatch,
     RunControl,
-    declare_batch_period,
-    declare_bool,
     declare_run_control,
     drain_publishers,
-    wait_for_subscriptions,
 )
+from strapdown_ros.nodes.message_types import message_class
+from strapdown_ros.nodes.parameters import ParameterError, declare_bool
+from strapdown_ros.nodes.qos import qos_from_parameters
 
 __all__ = ["BatchedInputNode"]
 
@@ -41,8 +42,9 @@ GRACE_S = 0.5
 class BatchedInputNode(Node):
     """A node whose callbacks only buffer raw input that :meth:`run` processes in batches.
 
-    Subclasses call :meth:`declare_batched_input` in ``__init__``, put their publishers in
-    :attr:`output_pubs` (topic → publisher), subscribe with :meth:`_buffer` callbacks and
+    Subclasses call :meth:`declare_batched_input` in ``__init__``, create their publishers
+    with :meth:`add_output` (:attr:`output_pubs`: topic → publisher), subscribe with
+    :meth:`subscribe_input` (or :meth:`_buffer` callbacks) and
     override :meth:`_subscribe`, :meth:`_idle_stop` and :meth:`_summary` (and :meth:`_failure`
     if the input can make the node give up). By default a batch goes to ``self.solver`` (an
     object with ``on_batch(items) -> [(topic, stamp_ns, payload)]``, ``started`` and
@@ -54,8 +56,9 @@ class BatchedInputNode(Node):
     run_control: RunControl
 
     def declare_batched_input(self, done: str) -> None:
-        """Declare ``batch_period_s`` and the run-control parameters (``done``: what "done"
-        means for this node, for the parameter description)."""
+        """Declare the QoS (:attr:`qos`), ``batch_period_s`` and the run-control parameters
+        (``done``: what "done" means for this node, for the parameter description)."""
+        self.qos = qos_from_parameters(self)
         self.batch = InputBatch(declare_batch_period(self))
         self.run_control = declare_run_control(self, done)
         self.output_pubs: dict[str, Any] = {}
@@ -68,10 +71,33 @@ class BatchedInputNode(Node):
         self.taken: dict[str, int] = {}  # input topic → messages processed (progress reports)
         self._callback_kinds: dict[int, Any] = {}  # id(callback) → kind
 
-    def add_output(self, topic: str, msg_class: type, qos: Any) -> None:
-        """Create the publisher of output ``topic`` (raises what ``create_publisher`` raises)."""
-        self.output_pubs[topic] = self.create_publisher(msg_class, topic, qos)
+    def add_output(self, topic: str, msgtype: str, param: str | None = None) -> None:
+        """Create the publisher of output ``topic`` (``pkg/msg/Name``, QoS :attr:`qos`).
+
+        An invalid topic name raises :class:`ParameterError` naming ``param`` (the parameter
+        that set it; None: what ``create_publisher`` raises).
+        """
+        try:
+            self.output_pubs[topic] = self.create_publisher(
+                message_class(msgtype), topic, self.qos
+            )
+        except Exception as exc:
+            if param is None:
+                raise
+            raise ParameterError(param, str(exc)) from exc
         self.counts[topic] = 0
+
+    def subscribe_input(self, topic: str, msgtype: str, kind: Any, param: str) -> Any:
+        """Subscribe raw to input ``topic`` with a :meth:`_buffer` callback of ``kind``.
+
+        An invalid topic name raises :class:`ParameterError` naming ``param``.
+        """
+        try:
+            return self.create_subscription(
+                message_class(msgtype), topic, self._buffer(kind), self.qos, raw=True
+            )
+        except Exception as exc:
+            raise ParameterError(param, str(exc)) from exc
 
     def _buffer(self, kind: Any) -> Callable[[bytes], None]:
         """A raw-subscription callback that only buffers ``(kind, payload)`` for the loop."""
@@ -133,7 +159,7 @@ class BatchedInputNode(Node):
 
     @property
     def input_events(self) -> Any:
-        """The stage's :class:`~strapdown_ros.stages.checks.InputEvents` (None: none)."""
+        """The stage's :class:`~strapdown_ros.stages.intake.InputEvents` (None: none)."""
         return getattr(getattr(self, "solver", None), "events", None)
 
     def interrupted_summary(self) -> str:
@@ -168,10 +194,6 @@ class BatchedInputNode(Node):
         rc = self.run_control
         pubs = list(self.output_pubs.values())
         if rc.wait_for_subscribers > 0 or rc.subscribers_per_topic:
-            self.get_logger().info(
-                f"waiting for {rc.wait_for_subscribers} subscription(s) on every output topic "
-                f"(timeout {rc.wait_timeout_s:g} s)"
-            )
             if not wait_for_subscriptions(
                 self, pubs, rc.wait_for_subscribers, rc.wait_timeout_s, spin,
                 rc.subscribers_per_topic,

@@ -1,6 +1,6 @@
-"""``aiding_node``: GNSS, barometer, magnetometer and wheel odometer, live (issue 16).
+"""``aiding_node``: GNSS, barometer, magnetometer and wheel odometer, live.
 
-A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStream`, the object
+A thin rclpy shell around :class:`~strapdown_ros.stages.aiding.AidingStage`, the object
 ``strapdown-sim generate`` feeds: raw truth Odometry payloads in (default
 ``/reference/odom``), in batches, serialized aiding messages out (``/gnss/fix``, ``/gnss/vel``,
 ``/baro/pressure``, ``/mag``, ``/wheel/twist`` for the enabled sensors), byte for byte the
@@ -17,15 +17,10 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import merge_order
 from strapdown_ros.config import ScenarioError
 from strapdown_ros.nodes._batched import BatchedInputNode
-from strapdown_ros.nodes._common import (
-    ParameterError,
-    declare_scenario,
-    declare_string,
-    message_class,
-    qos_from_parameters,
-    run_node,
-)
-from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStream, aiding_spec
+from strapdown_ros.nodes.lifecycle import run_node
+from strapdown_ros.nodes.parameters import ParameterError, declare_scenario, declare_string
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStage, aiding_spec
 
 NODE_NAME = "aiding_node"
 
@@ -47,15 +42,16 @@ class AidingNode(BatchedInputNode):
         )
         if not self.truth_topic:
             raise ParameterError("truth_topic", "must not be empty")
-        self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last truth message")
         log = self.get_logger()
-        self.stream = AidingStream(
-            scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg)
-        )
+        self.stream = AidingStage(
+            scenario, spec, truth_topic=self.truth_topic, warn=lambda msg: log.warning(msg),
+            error=lambda msg: log.error(msg),
+        )  # fmt: skip
         for topic in self.stream.topics:
-            self.add_output(topic, message_class(AIDING_MSGTYPES[topic]), self.qos)
-        self.last_truth_ns = self._last_truth_stamp(scenario)
+            self.add_output(topic, AIDING_MSGTYPES[topic])
+        plan = resolve_plan(scenario)
+        self.last_truth_ns = plan.last_stamp(scenario.recording.topics["reference_odom"])
         self._subscription = None
         self._started = False
         log.info(
@@ -64,23 +60,12 @@ class AidingNode(BatchedInputNode):
             f"{', '.join(self.stream.topics)}"
         )
 
-    @staticmethod
-    def _last_truth_stamp(scenario: Any) -> int:
-        from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-        cycles = output_cycles(scenario, build_trajectory(scenario))
-        return scenario.start_time_ns + cycles * scenario.period_ns
-
     # -- BatchedInputNode hooks -----------------------------------------------------------------
 
     def _subscribe(self) -> str:
-        try:
-            self._subscription = self.create_subscription(
-                message_class(cdr.ODOMETRY), self.truth_topic, self._buffer(None), self.qos,
-                raw=True,
-            )  # fmt: skip
-        except Exception as exc:
-            raise ParameterError("truth_topic", str(exc)) from exc
+        self._subscription = self.subscribe_input(
+            self.truth_topic, cdr.ODOMETRY, None, "truth_topic"
+        )
         return self.truth_topic
 
     def _process(self, items: list[Any]) -> None:

@@ -31,9 +31,8 @@ import os
 import time
 from collections.abc import Callable, Iterator
 
-from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from strapdown_ros.bag.playback import (
     CLOCK_MSGTYPE,
@@ -45,21 +44,20 @@ from strapdown_ros.bag.playback import (
     pacing_stats,
 )
 from strapdown_ros.bag.reader import BagReadError
-from strapdown_ros.nodes._common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    Pacer,
+from strapdown_ros.nodes.handshake import wait_for_subscriptions
+from strapdown_ros.nodes.lifecycle import EXIT_FAILURE, EXIT_OK, drain_publishers, run_node
+from strapdown_ros.nodes.message_types import message_class
+from strapdown_ros.nodes.pacing import Pacer
+from strapdown_ros.nodes.parameters import (
     ParameterError,
-    SignalStop,
     declare_bool,
     declare_int,
     declare_number,
     declare_string,
     declare_string_array,
-    message_class,
-    run_node,
-    wait_for_subscriptions,
 )
+from strapdown_ros.nodes.qos import qos_profile
+from strapdown_ros.nodes.signals import SignalStop
 
 NODE_NAME = "bag_player"
 #: Longest time without servicing rclpy while publishing.
@@ -133,18 +131,7 @@ class BagPlayer(SignalStop, Node):
                 self.get_logger().warning(f"{t.topic}: not played: {exc}")
                 self.publishers_by_index.append(None)
                 continue
-            qos = QoSProfile(
-                history=HistoryPolicy.KEEP_LAST,
-                depth=depth,
-                reliability=(
-                    ReliabilityPolicy.RELIABLE if t.reliable else ReliabilityPolicy.BEST_EFFORT
-                ),
-                durability=(
-                    DurabilityPolicy.TRANSIENT_LOCAL
-                    if t.transient_local
-                    else DurabilityPolicy.VOLATILE
-                ),
-            )
+            qos = qos_profile(depth, reliable=t.reliable, transient_local=t.transient_local)
             try:
                 pub = self.create_publisher(cls, t.out_topic, qos)
             except Exception as exc:  # invalid (remapped) topic name
@@ -326,25 +313,16 @@ class BagPlayer(SignalStop, Node):
         if wanted <= 0:
             return True
         pubs = [p for p in self.publishers_by_index if p is not None]
-        self.get_logger().info(
-            f"waiting for {wanted} subscription(s) on every played topic "
-            f"(timeout {self.wait_timeout_s:g} s)"
-        )
         return wait_for_subscriptions(self, pubs, wanted, self.wait_timeout_s, spin)
 
     def _drain(self, spin: Callable[[float], None]) -> None:
         """Give RELIABLE subscribers the time to acknowledge everything, then a grace period."""
-        deadline = time.monotonic() + self.drain_timeout_s
         pubs = [p for p in self.publishers_by_index if p is not None]
         if self.clock_pub is not None:
             pubs.append(self.clock_pub)
-        for pub in pubs:
-            while self._stop_reason is None and time.monotonic() < deadline:
-                if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):  # type: ignore[attr-defined]
-                    break
-        end = time.monotonic() + GRACE_S
-        while time.monotonic() < end and self._stop_reason is None:
-            spin(max(end - time.monotonic(), 0.0))
+        drain_publishers(
+            self, pubs, spin, self.drain_timeout_s, GRACE_S, lambda: self._stop_reason is None
+        )
 
     def _log_summary(self, elapsed: float) -> None:
         total = sum(self.counts.values())

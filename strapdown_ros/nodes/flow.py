@@ -1,4 +1,4 @@
-"""Flow control of the live pipeline when it is not tied to the wall clock (issue 19).
+"""Flow control of the live pipeline when it is not tied to the wall clock.
 
 Every consumer (``bag_recorder``, the batched nodes) reports on :data:`FLOW_TOPIC` how many
 messages of each input topic it has *taken* (processed) and how many it has published on each

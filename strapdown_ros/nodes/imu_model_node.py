@@ -1,6 +1,6 @@
-"""``imu_model_node``: the scenario's IMU error model, live (docs/interface.md §4, issue 7).
+"""``imu_model_node``: the scenario's IMU error model, live (docs/interface.md §4).
 
-A thin rclpy shell around :class:`~strapdown_ros.stages.measurement.MeasuredImuStream`, the
+A thin rclpy shell around :class:`~strapdown_ros.stages.imu_errors.ImuErrorsStage`, the
 object ``strapdown-sim generate`` feeds: raw ideal Imu payloads in (default ``/variation/imu``),
 in batches, serialized measured ones out (default ``/variation/imu_measured``), byte for byte the
 bag's. Gaps, order and restarts: the stage module. Parameters, exit status (0 done, 1 failure,
@@ -13,22 +13,13 @@ from typing import Any
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.nodes._batched import BatchedInputNode
-from strapdown_ros.nodes._common import (
-    ParameterError,
-    declare_scenario,
-    declare_string,
-    message_class,
-    qos_from_parameters,
-    run_node,
-)
-from strapdown_ros.nodes._frames import derived_outputs
-from strapdown_ros.stages.frames import FramesStage
-from strapdown_ros.stages.measurement import (
-    MeasuredImuStream,
-    format_stamp,
-    imu_model_topics,
-    last_input_cycle,
-)
+from strapdown_ros.nodes._tf import derived_outputs
+from strapdown_ros.nodes.lifecycle import run_node
+from strapdown_ros.nodes.parameters import ParameterError, declare_scenario, declare_string
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.imu_errors import ImuErrorsStage, imu_errors_topics
+from strapdown_ros.stages.intake import format_stamp
+from strapdown_ros.stages.tf import TFStage
 
 NODE_NAME = "imu_model_node"
 
@@ -39,7 +30,7 @@ class ImuModelNode(BatchedInputNode):
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
         scenario = declare_scenario(self)
-        default_in, default_out = imu_model_topics(scenario)  # ScenarioError if no imu_errors
+        default_in, default_out = imu_errors_topics(scenario)  # ScenarioError if no imu_errors
         self.input_topic = declare_string(
             self, "input_topic", default_in, "ideal Imu topic (default imu_errors.input_topic)"
         )
@@ -51,11 +42,10 @@ class ImuModelNode(BatchedInputNode):
                 raise ParameterError(name, "must not be empty")
         if self.input_topic == self.output_topic:
             raise ParameterError("output_topic", f"equals the input topic {self.input_topic}")
-        self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last cycle")
 
         log = self.get_logger()
-        self.stream = MeasuredImuStream(
+        self.stream = ImuErrorsStage(
             scenario,
             self.input_topic,
             self.output_topic,
@@ -63,17 +53,15 @@ class ImuModelNode(BatchedInputNode):
             warn=lambda msg: log.warning(msg),
             error=lambda msg: log.error(msg),
         )
-        self.last_cycle = last_input_cycle(scenario, self.input_topic)
-        try:
-            self.add_output(self.output_topic, message_class(cdr.IMU), self.qos)
-        except Exception as exc:  # invalid topic name
-            raise ParameterError("output_topic", str(exc)) from exc
         # Δv / Δq beside the measured IMU (recording.increments)
         names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
-        self.frames = FramesStage(scenario.with_recording(topics=names), variation_tf=False)
-        self.derived = derived_outputs(self, self.frames, [self.output_topic])
+        plan = resolve_plan(scenario.with_recording(topics=names))
+        self.last_cycle = plan.last_cycle(self.input_topic)
+        self.add_output(self.output_topic, cdr.IMU, "output_topic")
+        self.frames = TFStage(plan, variation_tf=False)
+        self.derived = derived_outputs(self, plan, [self.output_topic])
         for topic, msgtype in self.derived.items():
-            self.add_output(topic, message_class(msgtype), self.qos)
+            self.add_output(topic, msgtype)
         self._subscription = None
         self._started = False
         spec = self.stream.spec
@@ -88,12 +76,7 @@ class ImuModelNode(BatchedInputNode):
     # -- BatchedInputNode hooks -----------------------------------------------------------------
 
     def _subscribe(self) -> str:
-        try:
-            self._subscription = self.create_subscription(
-                message_class(cdr.IMU), self.input_topic, self._buffer(None), self.qos, raw=True
-            )
-        except Exception as exc:
-            raise ParameterError("input_topic", str(exc)) from exc
+        self._subscription = self.subscribe_input(self.input_topic, cdr.IMU, None, "input_topic")
         return self.input_topic
 
     def _process(self, items: list[Any]) -> None:

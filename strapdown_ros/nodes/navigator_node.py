@@ -1,6 +1,6 @@
-"""``navigator_node``: the navigation stage, live (docs/interface.md §4, issue 5).
+"""``navigator_node``: the navigation stage, live (docs/interface.md §4).
 
-A thin rclpy shell around :class:`~strapdown_ros.stages.navigation.NavigationStage` — the very
+A thin rclpy shell around :class:`~strapdown_ros.stages.navigator.NavigatorStage` — the very
 object ``strapdown-sim generate`` feeds, so ``/navigator/*`` are published with the bag's
 bytes. It subscribes raw to an IMU topic and, optionally, a truth Odometry topic, hands the
 payloads over in batches and publishes what the stage returns. Settings: the scenario's
@@ -19,19 +19,18 @@ from strapdown_ros.config import DEFAULT_TOPICS, Scenario, ScenarioError
 from strapdown_ros.config.base import validate_section
 from strapdown_ros.config.navigator import OUTPUT_TOPICS, NavigatorSpec, resolve_navigator
 from strapdown_ros.nodes._batched import BatchedInputNode
-from strapdown_ros.nodes._common import (
+from strapdown_ros.nodes._tf import derived_outputs
+from strapdown_ros.nodes.lifecycle import run_node
+from strapdown_ros.nodes.parameters import (
     ParameterError,
     declare_int,
     declare_number,
     declare_scenario,
     declare_string,
-    message_class,
-    qos_from_parameters,
-    run_node,
 )
-from strapdown_ros.nodes._frames import derived_outputs
-from strapdown_ros.stages.frames import FramedSolver, FramesStage
-from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.navigator import NavigatorStage
+from strapdown_ros.stages.tf import SolverWithTF, TFStage
 
 NODE_NAME = "navigator_node"
 
@@ -62,7 +61,8 @@ def navigator_section(scenario: Scenario | None, overrides: dict[str, Any]) -> N
     gravity = scenario.gravity_model if scenario is not None else "j2"
     try:
         spec = validate_section(NavigatorSpec, section, "navigator")
-        spec = resolve_navigator(spec, topics, gravity, scenario)  # type: ignore[arg-type]
+        sections = None if scenario is None else scenario.sections()
+        spec = resolve_navigator(spec, topics, gravity, sections)
     except ScenarioError as exc:
         key = exc.key.removeprefix("navigator.")
         root = key.split(".")[0].split("[")[0]
@@ -100,17 +100,20 @@ class NavigatorNode(BatchedInputNode):
             )
             for key, rec_key in OUTPUT_TOPICS.items()
         }
-        self.qos = qos_from_parameters(self)
         self.declare_batched_input("the last output")
 
+        plan = None
+        if scenario is not None:  # the scenario with the node's output names
+            names = dict(scenario.recording.topics, navigator_odom=out_topics["odom"])
+            plan = resolve_plan(scenario.with_recording(topics=names))
         log = self.get_logger()
-        self.solver = NavigationStage(
+        self.solver = NavigatorStage(
             spec,
             out_topics,
             initial=scenario.initial if scenario is not None else None,
             start_ns=scenario.start_time_ns if scenario is not None else None,
             nav_period_s=nav_period_s,
-            end_ns=input_end_ns(scenario, spec.imu_topic) if scenario is not None else None,
+            end_ns=plan.last_stamp(spec.imu_topic) if plan is not None else None,
             earth_frame=scenario.recording.frames["earth"] if scenario is not None else "earth",
             info=log.info,
             warn=lambda m: log.warning(m),
@@ -121,17 +124,13 @@ class NavigatorNode(BatchedInputNode):
             if key.startswith("error") and not spec.truth_topic:
                 continue
             msgtype = {"odom": cdr.ODOMETRY, "fix": cdr.NAVSATFIX}.get(key, cdr.VECTOR3_STAMPED)
-            try:
-                self.add_output(topic, message_class(msgtype), self.qos)
-            except Exception as exc:
-                raise ParameterError(f"{key}_topic", str(exc)) from exc
-        if scenario is not None:  # map -> navigator and the map-frame odometry
-            names = dict(scenario.recording.topics, navigator_odom=out_topics["odom"])
-            frames = FramesStage(scenario.with_recording(topics=names), variation_tf=False)
-            derived = derived_outputs(self, frames, [out_topics["odom"]])
+            self.add_output(topic, msgtype, f"{key}_topic")
+        if plan is not None:  # map -> navigator and the map-frame odometry
+            frames = TFStage(plan, variation_tf=False)
+            derived = derived_outputs(self, plan, [out_topics["odom"]])
             for topic, msgtype in derived.items():
-                self.add_output(topic, message_class(msgtype), self.qos)
-            self.solver = FramedSolver(self.solver, frames, derived)
+                self.add_output(topic, msgtype)
+            self.solver = SolverWithTF(self.solver, frames, derived)
         self._subs: list = []
         log.info(
             f"{spec.algorithm} navigator, mode {spec.mode}, N = "
@@ -148,14 +147,7 @@ class NavigatorNode(BatchedInputNode):
         if spec.truth_topic:
             inputs.append((spec.truth_topic, cdr.ODOMETRY, "truth", "truth_topic"))
         for topic, msgtype, kind, param in inputs:
-            try:
-                self._subs.append(
-                    self.create_subscription(
-                        message_class(msgtype), topic, self._buffer(kind), self.qos, raw=True
-                    )
-                )
-            except Exception as exc:
-                raise ParameterError(param, str(exc)) from exc
+            self._subs.append(self.subscribe_input(topic, msgtype, kind, param))
         return " and ".join(str(topic) for topic, *_ in inputs)
 
     def _failure(self) -> str | None:

@@ -2,8 +2,8 @@
 
 It publishes exactly the messages ``strapdown-sim generate`` writes for the reference stream,
 in the same order: the very CDR payloads of
-:func:`strapdown_ros.stages.reference.reference_batch_chunks` (pieces of
-:func:`~strapdown_ros.stages.reference.reference_batches`), in
+:func:`strapdown_ros.stages.trajectory.reference_batch_chunks` (pieces of
+:func:`~strapdown_ros.stages.trajectory.reference_batches`), in
 :func:`~strapdown_ros.bag.batches.merge_order`, published raw. The message with stamp ``t`` is
 published at wall time ``start + (t - t0) / rate_factor``. Parameters and behaviour:
 docs/nodes.md.
@@ -21,7 +21,6 @@ import time
 from collections.abc import Callable, Iterator
 
 import rclpy
-from rclpy.duration import Duration
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
@@ -29,10 +28,13 @@ from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.bag.cdr import TF_MESSAGE
 from strapdown_ros.bag.playback import pacing_stats
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.nodes._common import (
-    EXIT_FAILURE,
-    EXIT_OK,
-    Pacer,
+from strapdown_ros.nodes._tf import derived_outputs, static_qos
+from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
+from strapdown_ros.nodes.handshake import declare_subscriber_counts, wait_for_subscriptions
+from strapdown_ros.nodes.lifecycle import EXIT_FAILURE, EXIT_OK, drain_publishers, run_node
+from strapdown_ros.nodes.message_types import message_class
+from strapdown_ros.nodes.pacing import Pacer
+from strapdown_ros.nodes.parameters import (
     ParameterError,
     declare_bool,
     declare_int,
@@ -40,16 +42,11 @@ from strapdown_ros.nodes._common import (
     declare_scenario,
     declare_string,
     declare_string_array,
-    declare_subscriber_counts,
-    message_class,
-    qos_from_parameters,
-    run_node,
-    wait_for_subscriptions,
 )
-from strapdown_ros.nodes._frames import derived_outputs, static_qos
-from strapdown_ros.nodes.flow import DEFAULT_WINDOW, FlowGate
-from strapdown_ros.stages.frames import FramesStage
-from strapdown_ros.stages.reference import build_trajectory, output_cycles, reference_batch_chunks
+from strapdown_ros.nodes.qos import qos_from_parameters
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.tf import TFStage
+from strapdown_ros.stages.trajectory import reference_batch_chunks
 
 NODE_NAME = "trajectory_node"
 TIME_SOURCES = ("sim", "wall")
@@ -136,8 +133,6 @@ class TrajectoryNode(Node):
                 "time_source",
                 f"must be one of: {', '.join(TIME_SOURCES)}; got {self.time_source!r}",
             )
-        self.trajectory = build_trajectory(scenario)  # validates the trajectory's parameters
-        self.cycles = output_cycles(scenario, self.trajectory)
 
         topics = dict(scenario.recording.topics)
         for name, key in TOPIC_PARAMETERS.items():
@@ -166,6 +161,9 @@ class TrajectoryNode(Node):
 
         # The /clock batch exists exactly in 'sim' mode, whatever recording.clock says.
         self.scenario = scenario.with_recording(topics=topics, clock=self.time_source == "sim")
+        self.plan = resolve_plan(self.scenario)
+        self.plan.trajectory  # noqa: B018 - built now: validates the trajectory's parameters
+        self.cycles = self.plan.cycles
         self.imu_topic = topics["reference_imu"]
         data_topics = [topics[k] for k in ("reference_odom", "reference_fix", "reference_imu")]
         all_topics = ([topics["clock"]] if self.scenario.recording.clock else []) + data_topics
@@ -177,8 +175,8 @@ class TrajectoryNode(Node):
 
         self._msgtypes = self._topic_types()
         # TF (/tf_static, map -> base_link) and map-frame odometry of the reference
-        self.frames = FramesStage(self.scenario, cycles=self.cycles, variation_tf=False)
-        self._derived = derived_outputs(self, self.frames, list(self._msgtypes), static=True)
+        self.frames = TFStage(self.plan, variation_tf=False)
+        self._derived = derived_outputs(self, self.plan, list(self._msgtypes), static=True)
         self._static_topic = self._derived.pop(self.frames.tf_static_topic, None) and (
             self.frames.tf_static_topic
         )
@@ -235,7 +233,7 @@ class TrajectoryNode(Node):
             executor.spin_once(timeout_sec=timeout_s)
             last_spin[0] = time.monotonic()
 
-        pieces = _Pieces(self._with_frames(reference_batch_chunks(self.scenario, self.trajectory)))
+        pieces = _Pieces(self._with_frames(reference_batch_chunks(self.plan)))
         try:
             if not self._wait_for_subscribers(spin):
                 return EXIT_FAILURE
@@ -268,7 +266,7 @@ class TrajectoryNode(Node):
                     if gate is not None and counts[topic] >= gate.limits[topic]:
                         # The pace resumes from here: a stall is not caught up in a burst.
                         pacer.start += gate.wait(topic, counts[topic], spin, ok)
-                    # SIGINT / SIGTERM (rclpy's signal handlers); ok() costs ~2 µs: not every time
+                    # SIGINT / SIGTERM (rclpy's signal handlers); ok() is not free: every 64th
                     if not counts[topic] & 63 and not ok():
                         raise ExternalShutdownException()
                     if paced:
@@ -301,41 +299,16 @@ class TrajectoryNode(Node):
             return True
         topics = set(self._wait_topics) | set(self.subscribers_per_topic)
         pubs = [p for t, p in self._publishers_by_topic.items() if t in topics]
-        self.get_logger().info(
-            f"waiting for {wanted} subscription(s) on {', '.join(self._wait_topics)} "
-            f"(timeout {self.wait_timeout_s:g} s)"
-        )
         return wait_for_subscriptions(
             self, pubs, wanted, self.wait_timeout_s, spin, self.subscribers_per_topic
         )
 
-    def _wait_acked(self, pub, timeout_s: float) -> bool:
-        """Wait (in short steps, so that a signal is noticed) until ``pub``'s data is acked."""
-        deadline = time.monotonic() + timeout_s
-        while rclpy.ok(context=self.context):
-            if pub.wait_for_all_acked(Duration(nanoseconds=50_000_000)):
-                return True
-            if time.monotonic() > deadline:
-                self.get_logger().warn(
-                    f"{pub.topic_name}: messages not acknowledged within {timeout_s:g} s",
-                    throttle_duration_sec=10.0,
-                )
-                return False
-        raise ExternalShutdownException()
-
     def _drain(self, spin: Callable[[float], None]) -> None:
         """Let the subscribers receive everything: acknowledgements, then a grace period."""
-        deadline = time.monotonic() + DRAIN_TIMEOUT_S
-        acked = [
-            self._wait_acked(pub, max(deadline - time.monotonic(), 0.1))
-            for pub in self._publishers_by_topic.values()
-        ]
-        if all(acked):
-            waited = time.monotonic() - deadline + DRAIN_TIMEOUT_S
+        pubs = list(self._publishers_by_topic.values())
+        waited = drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)
+        if waited is not None:
             self.get_logger().info(f"all messages acknowledged after {waited:.3f} s")
-        end = time.monotonic() + GRACE_S
-        while time.monotonic() < end:
-            spin(max(end - time.monotonic(), 0.0))
 
     def _log_summary(self, elapsed: float, span: float, pacer: Pacer | None) -> None:
         total = sum(self.counts.values())

@@ -3,7 +3,7 @@
 A thin rclpy shell over :class:`~strapdown_ros.stages.variation.VariationStage` (the same
 streaming stage ``strapdown-sim generate`` runs): it subscribes raw to the reference Imu and
 Odometry topics, hands the payloads to the stage in batches (:class:`~strapdown_ros.nodes.
-_common.InputBatch`) and publishes the serialized ``/variation/*`` and ``/variation/reference/*``
+batching.InputBatch`) and publishes the serialized ``/variation/*`` and ``/variation/reference/*``
 messages it returns, which are byte-identical to the bag's. The stage pairs the messages by
 stamp on the scenario's cycle grid, solves Method 2 in windows of at most
 :data:`~strapdown_ros.stages.variation.MAX_WINDOW` cycles, and logs and handles gaps, repeats,
@@ -20,17 +20,11 @@ from __future__ import annotations
 from strapdown_ros.bag import cdr
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.nodes._batched import BatchedInputNode
-from strapdown_ros.nodes._common import (
-    ParameterError,
-    declare_scenario,
-    declare_string,
-    message_class,
-    qos_from_parameters,
-    run_node,
-)
-from strapdown_ros.nodes._frames import derived_outputs
-from strapdown_ros.stages.frames import FramedSolver, FramesStage
-from strapdown_ros.stages.reference import build_trajectory, output_cycles
+from strapdown_ros.nodes._tf import derived_outputs
+from strapdown_ros.nodes.lifecycle import run_node
+from strapdown_ros.nodes.parameters import ParameterError, declare_scenario, declare_string
+from strapdown_ros.plan import resolve_plan
+from strapdown_ros.stages.tf import SolverWithTF, TFStage
 from strapdown_ros.stages.variation import IMU, ODOM, VariationStage
 
 NODE_NAME = "variation_node"
@@ -58,7 +52,6 @@ class VariationNode(BatchedInputNode):
         if scenario.variation is None:
             raise ScenarioError("variation", "missing: the scenario defines no variation")
         method, gravity = _check_settings(scenario)
-        cycles = output_cycles(scenario, build_trajectory(scenario))
 
         topics = dict(scenario.recording.topics)
         names: dict[str, str] = {}
@@ -74,12 +67,13 @@ class VariationNode(BatchedInputNode):
         for topic in used:
             if used.count(topic) > 1:
                 raise ParameterError(names[topic], f"topic {topic} is used twice: {used}")
-        self.qos = qos_from_parameters(self)
-        # A window costs ~2.3 ms of CPU plus ~0.1 ms per cycle (numpy call overhead on small
-        # arrays dominates): batches of batch_period_s (default 10 ms) keep 1 kHz affordable.
+        # A window has a fixed cost (numpy calls on small arrays) beside its cost per cycle:
+        # batches of batch_period_s keep 1 kHz affordable (docs/benchmarks.md).
         self.declare_batched_input("the last cycle")
 
         self.scenario = scenario.with_recording(topics=topics)
+        self.plan = resolve_plan(self.scenario)
+        cycles = self.plan.cycles
         log = self.get_logger()
         self.solver = VariationStage(
             self.scenario,
@@ -93,20 +87,17 @@ class VariationNode(BatchedInputNode):
             topic = topics[key]
             msgtype = cdr.NAVSATFIX if key.endswith("fix") else cdr.IMU
             msgtype = cdr.ODOMETRY if key.endswith("odom") else msgtype
-            try:
-                self.add_output(topic, message_class(msgtype), self.qos)
-            except Exception as exc:  # invalid topic name
-                raise ParameterError(names[topic], str(exc)) from exc
+            self.add_output(topic, msgtype, names[topic])
         # base_link -> variation_imu (variation truth relative to the reference input) and the
         # map-frame odometry of the outputs
-        frames = FramesStage(self.scenario, offsets=self.solver.offsets, cycles=cycles)
+        frames = TFStage(self.plan, offsets=self.solver.offsets)
         outputs = [topics[k] for k in OUTPUT_PARAMETERS.values()]
-        derived = derived_outputs(self, frames, outputs)
+        derived = derived_outputs(self, self.plan, outputs)
         for topic, msgtype in derived.items():
-            self.add_output(topic, message_class(msgtype), self.qos)
-        self.solver = FramedSolver(self.solver, frames, derived, reference_input=ODOM)
+            self.add_output(topic, msgtype)
+        self.solver = SolverWithTF(self.solver, frames, derived, reference_input=ODOM)
         self._input_subscriptions: list = []
-        m_var = cycles - 1 - (cycles - 1) % 2
+        m_var = self.plan.variation_cycles
         log.info(
             f"scenario {scenario.path} ({scenario.name}): reference cycles 0..{cycles} at "
             f"{scenario.rate_hz:g} Hz, variation cycles 0..{m_var}, method {method}, gravity "
@@ -119,14 +110,8 @@ class VariationNode(BatchedInputNode):
     def _subscribe(self) -> str:
         for kind, topic in self.inputs.items():
             msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
-            try:
-                sub = self.create_subscription(
-                    message_class(msgtype), topic, self._buffer(kind), self.qos, raw=True
-                )
-            except Exception as exc:
-                param = next(p for p, k in INPUT_PARAMETERS.items() if k == f"reference_{kind}")
-                raise ParameterError(param, str(exc)) from exc
-            self._input_subscriptions.append(sub)
+            param = next(p for p, k in INPUT_PARAMETERS.items() if k == f"reference_{kind}")
+            self._input_subscriptions.append(self.subscribe_input(topic, msgtype, kind, param))
         return f"{self.inputs[IMU]} and {self.inputs[ODOM]}"
 
     def _idle_stop(self) -> None:

@@ -231,7 +231,7 @@ def write_report(
     else:
         result.omitted["allan"] = "no measured IMU topic (`P/imu_measured`)"
 
-    # --- aiding sensors (issue 16)
+    # --- aiding sensors
     from strapdown_ros.report.aiding import aiding_errors, aiding_table, plot_aiding
 
     aiding = aiding_errors(data.contents, data.start_ns)

@@ -69,7 +69,7 @@ def aiding_errors(contents: BagContents, start_ns: int) -> dict[str, AidingError
     present = [t for t in _SENSOR_OF_TOPIC if t in contents.topics]
     if not present or "/reference/odom" not in contents.topics:
         return {}
-    from strapdown_ros.stages.aiding import AidingStream, error_free_spec
+    from strapdown_ros.stages.aiding import AidingStage, error_free_spec
 
     odom = contents["/reference/odom"]
     note = ""
@@ -84,7 +84,7 @@ def aiding_errors(contents: BagContents, start_ns: int) -> dict[str, AidingError
         stamps = contents.topics[t].fields.stamps_ns  # type: ignore[union-attr]
         if "rate_hz" not in doc.get(sensor, {}) and len(stamps) > 1:
             doc.setdefault(sensor, {})["rate_hz"] = 1e9 / float(np.min(np.diff(stamps)))
-    ideal = AidingStream.for_truth(
+    ideal = AidingStage.for_truth(
         error_free_spec(doc), int(odom.stamps_ns[0]), odom.child_frame_id  # type: ignore[attr-defined]
     )
     truth = {o.topic: o.fields for o in ideal.feed_fields(odom)}  # type: ignore[arg-type]

@@ -1,4 +1,4 @@
-"""Aiding measurements (issue 16): GNSS, barometer, magnetometer and wheel odometer from the truth.
+"""Aiding measurements: GNSS, barometer, magnetometer and wheel odometer from the truth.
 
 One streaming stage used by ``strapdown-sim generate`` and the live node: the reference truth
 ``nav_msgs/Odometry`` goes in (decoded fields or CDR payloads, in chunks of any size, state
@@ -58,22 +58,30 @@ from strapdown_ros.messages import (
     navsatfix_fields_from_geodetic,
     odometry_state,
 )
-from strapdown_ros.stages.checks import nonfinite_rows, without_rows
+from strapdown_ros.plan.model import TopicPlan
+from strapdown_ros.stages.intake import (
+    MAX_LATE_CYCLES,
+    InputEvents,
+    decode_runs,
+    format_stamp,
+    quiet,
+    screen,
+    stamp_span,
+    stretches,
+    without_rows,
+)
 
 __all__ = [
     "AIDING_MSGTYPES",
     "NOT_MEASURED_VARIANCE",
     "AidingOutput",
-    "AidingStream",
+    "AidingStage",
     "TruthRows",
-    "aiding_custom_data",
-    "aiding_expected_counts",
-    "aiding_log_delays",
+    "aiding_topic_plans",
     "aiding_spec",
     "aiding_topic_types",
     "epochs_in",
     "error_free_spec",
-    "generate_aiding_stream",
     "igrf_coefficients",
 ]
 
@@ -83,8 +91,8 @@ Log = Callable[[str], None]
 NOT_MEASURED_VARIANCE = 1e6
 
 
-def _ignore(_: str) -> None:
-    return None
+#: Marks a restart of the source between two stretches of truth (AidingStage._intake).
+_RESTART: Any = object()
 
 
 def aiding_spec(scenario: Scenario) -> AidingSpec | None:
@@ -106,25 +114,6 @@ def aiding_topic_types(scenario: Scenario) -> dict[str, str]:
     """Topic -> message type of the aiding topics the scenario produces (enabled sensors)."""
     spec = aiding_spec(scenario)
     return {} if spec is None else {t: AIDING_MSGTYPES[t] for t in spec.topics()}
-
-
-def aiding_log_delays(scenario: Scenario) -> dict[str, int]:
-    """Bag log time minus header stamp (ns) of the aiding topics that have one (the GNSS
-    latency), for a recorder that logs at header stamps to write what ``generate`` writes."""
-    spec = aiding_spec(scenario)
-    gnss = None if spec is None else spec.sensors().get("gnss")
-    if gnss is None or not gnss.latency_ns:  # type: ignore[attr-defined]
-        return {}
-    delay = gnss.latency_ns  # type: ignore[attr-defined]
-    return {AIDING_TOPICS["gnss_fix"]: delay, AIDING_TOPICS["gnss_vel"]: delay}
-
-
-def generate_aiding_stream(scenario: Scenario) -> AidingStream | None:
-    """The :class:`AidingStream` of ``generate`` (None without enabled aiding sensors)."""
-    spec = aiding_spec(scenario)
-    if spec is None or not spec.sensors():
-        return None
-    return AidingStream(scenario, spec)
 
 
 @functools.lru_cache(maxsize=8)
@@ -412,7 +401,7 @@ class _Wheel(_Channel):
         return [AidingOutput(AIDING_TOPICS["wheel"], fields, truth.stamps_ns)]
 
 
-class AidingStream:
+class AidingStage:
     """Reference truth Odometry in (any chunking), aiding messages out; no rclpy.
 
     Parameters
@@ -441,9 +430,10 @@ class AidingStream:
         spec: AidingSpec | None = None,
         *,
         truth_topic: str | None = None,
-        warn: Log = _ignore,
+        warn: Log = quiet,
+        error: Log | None = None,
     ) -> None:
-        spec = spec if spec is not None else aiding_spec(scenario)
+        spec = spec if spec is not None else scenario.aiding
         if spec is None:
             raise ScenarioError("aiding", "missing: the scenario defines no aiding sensors")
         self._setup(
@@ -452,6 +442,9 @@ class AidingStream:
             scenario.recording.frames["reference_imu"],
             truth_topic or scenario.recording.topics["reference_odom"],
             warn,
+            warn if error is None else error,
+            scenario.period_ns,
+            scenario.recording.frames["earth"],
         )
 
     @classmethod
@@ -461,19 +454,31 @@ class AidingStream:
         start_time_ns: int,
         body_frame: str,
         truth_topic: str = "/reference/odom",
-        warn: Log = _ignore,
-    ) -> AidingStream:
+        warn: Log = quiet,
+    ) -> AidingStage:
         """A stream without a scenario: its start time, the IMU frame and the truth topic
         (e.g. the report re-running a bag's aiding section with its errors off)."""
         self = cls.__new__(cls)
-        self._setup(spec, start_time_ns, body_frame, truth_topic, warn)
+        self._setup(spec, start_time_ns, body_frame, truth_topic, warn, warn, None, None)
         return self
 
-    def _setup(
-        self, spec: AidingSpec, t0: int, body: str, truth_topic: str, warn: Log
-    ) -> None:
+    def _setup(self, spec: AidingSpec, t0: int, body: str, truth_topic: str, warn: Log,
+               error: Log, period_ns: int | None, earth_frame: str | None) -> None:  # fmt: skip
         self.spec = spec
         self.truth_topic = truth_topic
+        self.t0_ns, self.body_frame = t0, body
+        self.period_ns, self.earth_frame = period_ns, earth_frame
+        self.warn = warn
+        #: Input events by class (flood-limited log lines; counted for the node's summary).
+        self.events = InputEvents(warn, error)
+        self.topics = spec.topics()
+        self.published = dict.fromkeys(self.topics, 0)
+        self.runs = 1
+        self._start_channels()
+
+    def _start_channels(self) -> None:
+        """The sensors' error models from their seeds, epochs counted from the start."""
+        spec, t0, warn = self.spec, self.t0_ns, self.warn
         self.channels: list[_Channel] = []
         sensors = spec.sensors()
         if "gnss" in sensors:
@@ -481,46 +486,76 @@ class AidingStream:
         if "barometer" in sensors:
             self.channels.append(_Baro(spec.barometer, t0, warn))  # type: ignore[arg-type]
         if "magnetometer" in sensors:
-            self.channels.append(_Mag(spec.magnetometer, t0, body, warn))  # type: ignore[arg-type]
+            self.channels.append(_Mag(spec.magnetometer, t0, self.body_frame, warn))  # type: ignore[arg-type]
         if "wheel_odometer" in sensors:
             self.channels.append(_Wheel(spec.wheel_odometer, t0, warn))  # type: ignore[arg-type]
-        self.topics = spec.topics()
-        self.published = dict.fromkeys(self.topics, 0)
         self.last_truth_ns: int | None = None
-        self.warn = warn
 
-    def feed_fields(self, odom: OdometryFields) -> list[AidingOutput]:
-        """The aiding messages due after the truth messages ``odom``.
-
-        Input faults (docs/reliability.md): a truth message with a NaN or an infinity, or
-        whose stamp is not after an earlier one, is dropped (logged); the epochs it carried are
-        skipped like missing ones.
-        """
-        if not len(odom):
+    def _intake(self, odom: OdometryFields) -> list[OdometryFields]:
+        """The truth messages fit to use, as the stretches of one run each: messages with a
+        NaN, an infinity or a degenerate orientation, or in another frame than the Earth frame,
+        are dropped (their epochs skipped); a stamp not after the last one is dropped, unless it
+        jumps back more than :data:`~strapdown_ros.stages.intake.MAX_LATE_CYCLES` periods (the
+        source restarted: the sensors restart from their seeds, a new run)."""
+        topic = self.truth_topic
+        odom, _ = screen(odom, topic, self.events, "dropped (its sensor epochs are skipped)")
+        if odom is None:
             return []
-        bad = nonfinite_rows(odom)
-        if bad is not None:
-            self.warn(
-                f"{self.truth_topic}: {int(bad.sum())} truth message(s) with a NaN or an "
-                "infinity dropped (their epochs are skipped)"
-            )
-            odom = without_rows(odom, bad)
-            if odom is None:
-                return []
+        if self.earth_frame is not None and odom.frame_id != self.earth_frame:
+            self.events("wrong frame", f"{topic}: stamp {stamp_span(odom.stamps_ns)}: "
+                        f"header.frame_id {odom.frame_id!r} is not the Earth frame "
+                        f"{self.earth_frame!r}; dropped", error=True)  # fmt: skip
+            return []
         stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
         last = self.last_truth_ns if self.last_truth_ns is not None else np.iinfo(np.int64).min
         before = np.maximum.accumulate(np.concatenate([[last], stamps]))[:-1]
         late = stamps <= before  # repeated or out of order
-        if np.any(late):
-            self.warn(
-                f"{self.truth_topic}: {int(late.sum())} truth message(s) not after an earlier "
-                "one; dropped"
-            )
+        period = self.period_ns
+        if period is not None and late.any():
+            jump = np.flatnonzero(late & (stamps < before - MAX_LATE_CYCLES * period))
+            if jump.size:  # the source restarted at row r
+                r = int(jump[0])
+                head = [] if r == 0 else self._intake(odom.rows(0, r))
+                self.events("restart", f"{topic}: stamp {format_stamp(int(stamps[r]))} jumps "
+                            f"back from {format_stamp(int(before[r]))}: the source restarted; "
+                            "the sensors restart from their seeds (a new run)")  # fmt: skip
+                self.runs += 1
+                return [*head, _RESTART, *self._intake(odom.rows(r, len(odom)))]
+        if late.any():
+            for a, b in stretches(late):
+                what = "duplicate stamp" if stamps[a] == before[a] else "out-of-order stamp"
+                self.events(what, f"{topic}: stamp {stamp_span(stamps[a : b + 1])} not after an "
+                            "earlier one; dropped")  # fmt: skip
             odom = without_rows(odom, late)
             if odom is None:
                 return []
-            stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
-        self.last_truth_ns = int(stamps[-1])
+        self.last_truth_ns = int(odom.stamps_ns[-1])
+        return [odom]
+
+    def feed_fields(self, odom: OdometryFields) -> list[AidingOutput]:
+        """The aiding messages due after the truth messages ``odom`` (input faults:
+        :meth:`_intake`, docs/reliability.md)."""
+        if not len(odom):
+            return []
+        parts: list[list[AidingOutput]] = []
+        for run in self._intake(odom):
+            if run is _RESTART:
+                parts.append(_merge([ch.release(self.last_truth_ns) for ch in self.channels])
+                             if self.last_truth_ns is not None else [])  # fmt: skip
+                self._start_channels()
+                continue
+            parts.append(self._epochs(run))
+        out = [o for p in parts for o in p]
+        order = {t: i for i, t in enumerate(self.topics)}
+        out.sort(key=lambda o: order[o.topic])
+        for o in out:
+            self.published[o.topic] += len(o.log_ns)
+        return out
+
+    def _epochs(self, odom: OdometryFields) -> list[AidingOutput]:
+        """The messages of the sensors' epochs among ``odom`` and those now released."""
+        stamps = np.asarray(odom.stamps_ns, dtype=np.int64)
+        assert self.last_truth_ns is not None
         # The truth state of the messages that are an epoch of some sensor (row by row: the
         # same numbers whatever rows are decoded together).
         epoch = np.zeros(len(stamps), dtype=bool)
@@ -532,12 +567,7 @@ class AidingStream:
             truth = TruthRows(st.stamps_ns, st.r_e, st.v_e, st.c_b_e, st.omega_eb_b)
             parts += [ch.feed(truth) for ch in self.channels]
         parts += [ch.release(self.last_truth_ns) for ch in self.channels]
-        out = _merge(parts)
-        order = {t: i for i, t in enumerate(self.topics)}
-        out.sort(key=lambda o: order[o.topic])
-        for o in out:
-            self.published[o.topic] += len(o.log_ns)
-        return out
+        return _merge(parts)
 
     def feed(self, odom: OdometryFields) -> list[Batch]:
         """:meth:`feed_fields`, serialized: one :class:`Batch` per topic (log time = release)."""
@@ -547,11 +577,12 @@ class AidingStream:
         ]
 
     def on_payloads(self, payloads: list[bytes | memoryview]) -> list[Batch]:
-        """Serialized truth Odometry messages in, serialized aiding batches out (the node)."""
-        if not payloads:
-            return []
-        odom = cdr.deserialize(cdr.ODOMETRY, payloads)
-        return self.feed(odom)  # type: ignore[arg-type]
+        """Serialized truth Odometry messages in, serialized aiding batches out (the node):
+        decoded in one CDR call, or message by message when they do not decode together."""
+        out: list[Batch] = []
+        for _, odom in decode_runs(cdr.ODOMETRY, payloads, self.truth_topic, self.events):
+            out += self.feed(odom)
+        return out
 
     def feed_batches(self, batches: list[Batch]) -> list[Batch]:
         """``generate``'s path: the aiding batches of the truth topic's batch among ``batches``."""
@@ -567,14 +598,6 @@ _STRUCTURAL_KEYS = (
     "enabled", "rate_hz", "lever_arm_m", "latency_s", "outages", "status", "constellations",
     "frame_id", "model", "decimal_year", "nhc_sigma_mps",
 )  # fmt: skip
-
-
-def aiding_custom_data(spec: AidingSpec | None) -> dict[str, str]:
-    """Bag ``custom_data`` describing the aiding section: ``aiding`` = the section as JSON
-    (the values the model resolved, presets filled in), read back by the report."""
-    if spec is None:
-        return {}
-    return {"aiding": spec.model_dump_json(exclude_none=True)}
 
 
 def error_free_spec(document: dict[str, Any]) -> AidingSpec:
@@ -595,19 +618,16 @@ def epochs_in(start_ns: int, stop_ns: int, period_ns: int) -> int:
     return stop_ns // period_ns - (-(-start_ns // period_ns)) + 1
 
 
-def aiding_expected_counts(scenario: Scenario, cycles: int, spec: AidingSpec | None = None
-                           ) -> dict[str, int]:  # fmt: skip
-    """Messages per aiding topic for truth cycles 0..``cycles`` (what ``generate`` writes).
+def aiding_topic_plans(scenario: Scenario, spec: AidingSpec, cycles: int) -> list[TopicPlan]:
+    """The aiding topics for truth cycles 0..``cycles`` (what ``generate`` writes): per topic its
+    message count, first and last header stamps and log delay (the GNSS latency).
 
     Epochs in ``[t0, t0 + cycles T]``; GNSS: minus the epochs inside outages and those whose
     release time ``stamp + latency`` is after the last truth stamp.
     """
-    spec = spec if spec is not None else aiding_spec(scenario)
-    if spec is None:
-        return {}
     t0 = scenario.start_time_ns
     t_end = t0 + cycles * scenario.period_ns
-    out: dict[str, int] = {}
+    out: list[TopicPlan] = []
     sensors = spec.sensors()
     for key, topics in (("gnss", ("gnss_fix", "gnss_vel")), ("barometer", ("baro",)),
                         ("magnetometer", ("mag",)), ("wheel_odometer", ("wheel",))):  # fmt: skip
@@ -615,15 +635,16 @@ def aiding_expected_counts(scenario: Scenario, cycles: int, spec: AidingSpec | N
         if sensor is None:
             continue
         p = sensor.period_ns
+        delay = sensor.latency_ns if isinstance(sensor, GnssSpec) else 0
+        stamps = np.arange(-(-t0 // p), (t_end - delay) // p + 1, dtype=np.int64) * p
         if isinstance(sensor, GnssSpec):
-            k = np.arange(-(-t0 // p), (t_end - sensor.latency_ns) // p + 1)
-            stamps = k * p
             keep = np.ones(len(stamps), dtype=bool)
             for a, b in sensor.outage_windows_ns(t0):
                 keep &= ~((stamps >= a) & (stamps < b))
-            n = int(np.count_nonzero(keep))
-        else:
-            n = epochs_in(t0, t_end, p)
+            stamps = stamps[keep]
+        first, last = (int(stamps[0]), int(stamps[-1])) if stamps.size else (None, None)
         for t in topics:
-            out[AIDING_TOPICS[t]] = n
+            topic = AIDING_TOPICS[t]
+            out.append(TopicPlan(topic, AIDING_MSGTYPES[topic], int(stamps.size), "aiding", None,
+                                 first, last, delay))  # fmt: skip
     return out

@@ -26,16 +26,22 @@ from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
+from strapdown_ros.stages.intake import (
+    InputEvents,
+    decode_one,
+    format_stamp,
+    nonfinite_rows,
+    stamp_verdict,
+    stretches,
+    without_rows,
+)
 
 __all__ = [
     "IMU",
-    "MAX_LATE_CYCLES",
     "MAX_WINDOW",
     "ODOM",
     "Timing",
     "VariationStage",
-    "format_stamp",
     "scenario_offsets",
     "variation_batches",
     "variation_settings",
@@ -46,9 +52,6 @@ IMU, ODOM = "imu", "odom"
 Log = Callable[[str], None]
 Message = tuple[str, int, bytes]  # (topic, stamp_ns, serialized payload)
 
-#: An older stamp at most this many cycles behind the last one is a late message (dropped);
-#: a larger backward jump means the input stream restarted (the stage starts afresh).
-MAX_LATE_CYCLES = 10
 
 #: Longest window (cycles) the live node solves at once when it catches up on a backlog.
 MAX_WINDOW = 401
@@ -99,11 +102,6 @@ def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream
         earth_frame=rec.frames["earth"],
     )
     return batches
-
-
-def format_stamp(stamp_ns: int) -> str:
-    """``sec.nanosec`` of a stamp (ns since the epoch)."""
-    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
 
 
 def _concat(items: Sequence[Any]) -> Any:
@@ -263,7 +261,8 @@ class VariationStage:
     run of an uninterrupted stream from cycle 0: the offline output). A gap, a duplicate with
     different content, a frame change or an Imu/Odometry frame mismatch ends the run and starts
     a new one at the first cycle whose data is all consistent; the output never overlaps
-    between runs. An out-of-order message (at most :data:`MAX_LATE_CYCLES` back) is dropped, a
+    between runs. An out-of-order message (at most
+    :data:`~strapdown_ros.stages.intake.MAX_LATE_CYCLES` back) is dropped, a
     larger backward jump restarts everything (the input restarted); an identical duplicate is
     dropped; stamps off the cycle grid or beyond cycle M are dropped.
     """
@@ -370,26 +369,28 @@ class VariationStage:
             self._advance()
         return self._take_batches()
 
-    def feed_batches(
-        self, batches: Sequence[Batch], residuals: dict[str, Residuals] | None = None
-    ) -> list[Batch]:
+    def feed_batches(self, batches: Sequence[Batch]) -> list[Batch]:
         """:meth:`feed` with the reference batches of a ``generate`` piece (other topics are
-        ignored); the residuals of the windows solved are put in ``residuals``."""
+        ignored)."""
         by_topic = {b.topic: b for b in batches}
         decoded = {}
         for kind in (IMU, ODOM):
             b = by_topic.get(self.topics[kind])
             decoded[kind] = None if b is None else cdr.deserialize(b.msgtype, b.payloads)
-        out = self.feed(decoded[IMU], decoded[ODOM])
-        if residuals is not None and self._residuals is not None:
-            for name, parts in self._residuals.items():
-                if parts:
-                    residuals[name] = Residuals(
-                        attitude=np.concatenate([p.attitude for p in parts]),
-                        velocity=np.concatenate([p.velocity for p in parts]),
-                        position=np.concatenate([p.position for p in parts]),
-                    )
-                parts.clear()
+        return self.feed(decoded[IMU], decoded[ODOM])
+
+    def take_residuals(self) -> dict[str, Residuals]:
+        """One-step residuals of the windows solved since the last call, by stream
+        (``variation``, ``variation/reference``; kept with ``residuals=True``)."""
+        out: dict[str, Residuals] = {}
+        for name, parts in (self._residuals or {}).items():
+            if parts:
+                out[name] = Residuals(
+                    attitude=np.concatenate([p.attitude for p in parts]),
+                    velocity=np.concatenate([p.velocity for p in parts]),
+                    position=np.concatenate([p.position for p in parts]),
+                )
+            parts.clear()
         return out
 
     # -- input: raw payloads (the node) --------------------------------------------------------
@@ -575,97 +576,19 @@ class VariationStage:
 
     def _one(self, kind: str, msg: Any, payload: bytes | None) -> None:
         """One message that does not simply continue the run (first, gap, repeat, frames...)."""
-        topic = self.topics[kind]
-        msgtype = cdr.IMU if kind == IMU else cdr.ODOMETRY
         if msg is None:
-            t = time.perf_counter()
-            try:
-                msg = cdr.deserialize(msgtype, [payload])  # type: ignore[list-item]
-            except cdr.CdrError as exc:
-                self.events("malformed", f"{topic}: rejected a message that is not a {msgtype} "
-                            f"of the expected layout: {exc}", error=True)  # fmt: skip
+            msg = self._decode(kind, payload)  # type: ignore[arg-type]
+            if msg is None:
                 return
-            self.timing.decode_wall += time.perf_counter() - t
-            self.timing.decoded += 1
-            if nonfinite_rows(msg) is not None:
-                self.events.dropped(topic, [int(msg.stamps_ns[0])])
-                self.events(
-                    "non-finite",
-                    f"{topic}: stamp {format_stamp(int(msg.stamps_ns[0]))}: NaN or infinity in "
-                    "the message; dropped (a lost message: the solution restarts after it)",
-                    error=True,
-                )
-                return
-        stamp = int(msg.stamps_ns[0])
-        offset = stamp - self.t0_ns
-        if offset < 0 or offset % self.period_ns:
-            self.events(
-                "off-grid stamp",
-                f"{topic}: stamp {format_stamp(stamp)} is not on the scenario's cycle grid "
-                f"(start {format_stamp(self.t0_ns)}, T = {self.period_ns} ns); dropped"
-            )
+        m = self._cycle(kind, int(msg.stamps_ns[0]))
+        if m is None or not self._follow(kind, m, msg, payload):
             return
-        m = offset // self.period_ns
-        if m > self.cycles or (kind == IMU and m == 0):
-            if not self._warned_beyond:
-                self._warned_beyond = True
-                self.warn(
-                    f"{topic}: {self.describe(m)} is outside the scenario's cycles "
-                    f"({'1' if kind == IMU else '0'}..{self.cycles}); such messages are dropped"
-                )
-            return
-
-        last = self.last[kind]
-        if last is None:
-            self._remember(kind, m, msg, payload)
-            self.restart(self._first_run_cycle(kind, m), f"first message on {topic}")
-        elif m == last + 1:
-            self._remember(kind, m, msg, payload)
-        elif m == last:
-            if self._same(kind, msg, payload):
-                self.events("duplicate stamp", f"{topic}: duplicate stamp "
-                            f"{format_stamp(stamp)} (cycle {m}), identical content; dropped")
-                return
-            self.events("duplicate stamp", f"{topic}: duplicate stamp {format_stamp(stamp)} "
-                        f"(cycle {m}) with different content; both dropped")  # fmt: skip
-            self.buffer[kind].discard(m)
-            self.restart(self._first_run_cycle(kind, m + 1), f"{topic}: duplicate")
-            return
-        elif m < last - MAX_LATE_CYCLES:
-            self.events(
-                "restart",
-                f"{topic}: stamp {format_stamp(stamp)} (cycle {m}) jumps back "
-                f"{last - m} cycles from {format_stamp(self.t0_ns + last * self.period_ns)} "
-                f"(cycle {last}): the input restarted; starting afresh"
-            )
-            self._reset()
-            self._remember(kind, m, msg, payload)
-            self.restart(self._first_run_cycle(kind, m), f"first message on {topic} after the jump")
-        elif m < last:
-            self.events(
-                "out-of-order stamp",
-                f"{topic}: out-of-order stamp {format_stamp(stamp)} (cycle {m}) after "
-                f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); dropped"
-            )
-            return
-        else:
-            self.events.gap(
-                topic,
-                (self.t0_ns + k * self.period_ns for k in range(last + 1, m)),
-                f"{topic}: gap: stamp {format_stamp(stamp)} (cycle {m}) follows "
-                f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last}); "
-                f"{m - last - 1} cycle(s) missing",
-                self.info,
-            )
-            self._remember(kind, m, msg, payload)
-            self.restart(self._first_run_cycle(kind, m), f"{topic}: gap")
-
         if kind == ODOM and msg.frame_id != self.earth_frame:
             self.events(
                 "wrong frame",
-                f"{topic}: {self.describe(m)}: header.frame_id {msg.frame_id!r} is not the "
-                f"Earth frame {self.earth_frame!r} (recording.frames.earth); rejected, the "
-                f"solution restarts at cycle {m + 1}",
+                f"{self.topics[kind]}: {self.describe(m)}: header.frame_id {msg.frame_id!r} is "
+                f"not the Earth frame {self.earth_frame!r} (recording.frames.earth); rejected, "
+                f"the solution restarts at cycle {m + 1}",
                 error=True,
             )
             self.restart(m + 1, "", log=False)
@@ -675,6 +598,93 @@ class VariationStage:
             return  # before the current run (the other topic restarted it later)
         self.buffer[kind].add(m, msg)
         self._check_frames(m)
+
+    def _decode(self, kind: str, payload: bytes) -> Any:
+        """One payload decoded; None if it is malformed or not finite (logged, dropped)."""
+        topic = self.topics[kind]
+        t = time.perf_counter()
+        msg = decode_one(cdr.IMU if kind == IMU else cdr.ODOMETRY, payload, topic, self.events)
+        if msg is None:
+            return None
+        self.timing.decode_wall += time.perf_counter() - t
+        self.timing.decoded += 1
+        if nonfinite_rows(msg) is not None:
+            self.events.dropped(topic, [int(msg.stamps_ns[0])])
+            self.events(
+                "non-finite",
+                f"{topic}: stamp {format_stamp(int(msg.stamps_ns[0]))}: NaN or infinity in "
+                "the message; dropped (a lost message: the solution restarts after it)",
+                error=True,
+            )
+            return None
+        return msg
+
+    def _cycle(self, kind: str, stamp: int) -> int | None:
+        """The scenario cycle of ``stamp``; None if it is off the grid or outside the cycles
+        (logged, dropped)."""
+        topic = self.topics[kind]
+        offset = stamp - self.t0_ns
+        if offset < 0 or offset % self.period_ns:
+            self.events(
+                "off-grid stamp",
+                f"{topic}: stamp {format_stamp(stamp)} is not on the scenario's cycle grid "
+                f"(start {format_stamp(self.t0_ns)}, T = {self.period_ns} ns); dropped",
+            )
+            return None
+        m = offset // self.period_ns
+        if m > self.cycles or (kind == IMU and m == 0):
+            if not self._warned_beyond:
+                self._warned_beyond = True
+                self.warn(
+                    f"{topic}: {self.describe(m)} is outside the scenario's cycles "
+                    f"({'1' if kind == IMU else '0'}..{self.cycles}); such messages are dropped"
+                )
+            return None
+        return m
+
+    def _follow(self, kind: str, m: int, msg: Any, payload: bytes | None) -> bool:
+        """Cycle ``m`` after the topic's last (:func:`~strapdown_ros.stages.intake.
+        stamp_verdict`): remembered, the run restarted where it must; False if dropped."""
+        topic, last = self.topics[kind], self.last[kind]
+        verdict = stamp_verdict(m, last, 1)
+        stamp = format_stamp(self.t0_ns + m * self.period_ns)
+        if last is None or verdict == "next":
+            self._remember(kind, m, msg, payload)
+            if last is None:
+                self.restart(self._first_run_cycle(kind, m), f"first message on {topic}")
+            return True
+        after = f"{format_stamp(self.t0_ns + last * self.period_ns)} (cycle {last})"
+        if verdict == "duplicate":
+            if self._same(kind, msg, payload):
+                self.events("duplicate stamp", f"{topic}: duplicate stamp {stamp} (cycle {m}), "
+                            "identical content; dropped")  # fmt: skip
+                return False
+            self.events("duplicate stamp", f"{topic}: duplicate stamp {stamp} (cycle {m}) "
+                        "with different content; both dropped")  # fmt: skip
+            self.buffer[kind].discard(m)
+            self.restart(self._first_run_cycle(kind, m + 1), f"{topic}: duplicate")
+            return False
+        if verdict == "restart":
+            self.events("restart", f"{topic}: stamp {stamp} (cycle {m}) jumps back {last - m} "
+                        f"cycles from {after}: the input restarted; starting afresh")  # fmt: skip
+            self._reset()
+            self._remember(kind, m, msg, payload)
+            self.restart(self._first_run_cycle(kind, m), f"first message on {topic} after the jump")
+            return True
+        if verdict == "out-of-order":
+            self.events("out-of-order stamp", f"{topic}: out-of-order stamp {stamp} (cycle {m}) "
+                        f"after {after}; dropped")  # fmt: skip
+            return False
+        self.events.gap(
+            topic,
+            (self.t0_ns + k * self.period_ns for k in range(last + 1, m)),
+            f"{topic}: gap: stamp {stamp} (cycle {m}) follows {after}; "
+            f"{m - last - 1} cycle(s) missing",
+            self.info,
+        )
+        self._remember(kind, m, msg, payload)
+        self.restart(self._first_run_cycle(kind, m), f"{topic}: gap")
+        return True
 
     def _remember(self, kind: str, m: int, msg: Any, payload: bytes | None) -> None:
         self.last[kind], self.last_row[kind], self.last_payload[kind] = m, msg, payload

@@ -1,11 +1,12 @@
 """Fault injection into the live nodes (DDS): a generated bag's messages, altered per case, are
 published into ``navigator_node`` / ``variation_node`` / ``imu_model_node`` and their output is
-recorded (``fault_replay.py``). The node must keep running, never publish a non-finite number,
-resume correct output, log one line per event and count it in its summary (docs/reliability.md).
+recorded (``ros_helpers/reference_replay.py``). The node must keep running, never publish a
+non-finite number, resume correct output, log one line per event and count it in its summary
+(docs/reliability.md).
 
 ``STRAPDOWN_FAULTS_NODE_PATH=/path/to/checkout`` runs the nodes from another checkout's package
-(its ``strapdown_ros`` first on ``PYTHONPATH``), e.g. the commit before the fixes, on which the
-cases of issue 14's "Why" fail.
+(its ``strapdown_ros`` first on ``PYTHONPATH``), e.g. a commit before the fixes, on which the
+"Why" cases fail.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from node_testing import padded  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-HELPER = Path(__file__).resolve().parent / "fault_replay.py"
+HELPER = Path(__file__).resolve().parents[1] / "ros_helpers" / "reference_replay.py"
 DURATION_S = 3.0
 TIMEOUT_S = 120.0
 NAV_OUT = {
@@ -87,7 +88,8 @@ def _drive(tmp_path, ros_env, procs, node: str, inputs: tuple[str, str], record:
     _wait_for(log, "subscribed to", proc, deadline)
     out = tmp_path / "out.pkl"
     cmd = [sys.executable, str(HELPER), "--bag", str(bag_path), "--imu-topic", inputs[0],
-           "--odom-topic", inputs[1], "--out", str(out), "--timeout", "90", *faults]  # fmt: skip
+           "--odom-topic", inputs[1], "--out", str(out), "--timeout", "90",
+           "--interval", "0.0005", *faults]  # fmt: skip
     for topic, msgtype in record.items():
         cmd += ["--record", f"{topic}={msgtype}"]
     helper = subprocess.run(cmd, env=ros_env, capture_output=True, text=True, timeout=150)
@@ -117,7 +119,7 @@ def _decoded(got: dict[str, list[bytes]], msgtypes: dict[str, str]):
 
 
 def _all_finite(fields) -> bool:
-    from strapdown_ros.stages.checks import nonfinite_rows
+    from strapdown_ros.stages.intake import nonfinite_rows
 
     return nonfinite_rows(fields) is None
 
@@ -126,37 +128,92 @@ def _stamps(fields) -> list[int]:
     return np.asarray(fields.stamps_ns).tolist()
 
 
+#: The node under test, its (Imu, Odometry) inputs and the outputs recorded.
+NAV = ("navigator_node", ("/variation/imu", "/variation/odom"), NAV_OUT)
+VAR = ("variation_node", ("/reference/imu", "/reference/odom"), VAR_OUT)
+MODEL = ("imu_model_node", ("/variation/imu", "/variation/odom"), MEASURED)
+
+
+def _run_case(bag, tmp_path, ros_env, procs, target, faults: list[str]):
+    """:func:`_drive` of ``target`` (NAV, VAR, MODEL); returns (outputs by topic, decoded,
+    node log, exit status)."""
+    node, inputs, outputs = target
+    got, log, rc = _drive(tmp_path, ros_env, procs, node, inputs, outputs, bag[0], faults)
+    return got, _decoded(got, outputs), log, rc
+
+
 # ---------------------------------------------------------------------------------------------
-# navigator_node
+# a NaN in one input message, every node
 # ---------------------------------------------------------------------------------------------
 
 
-def test_navigator_nan_imu_never_published(bag, tmp_path, ros_env, procs) -> None:
-    """Why (1): a NaN in one input IMU message; old code published NaN odometry and errors."""
-    path, contents = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "navigator_node",
-                          ("/variation/imu", "/variation/odom"), NAV_OUT, path,
-                          ["--nan-imu", "205"])  # fmt: skip
-    dec = _decoded(got, NAV_OUT)
+def _navigator_resumes(got, dec, contents, log) -> None:
+    """Why (1): old code published NaN odometry and errors. It resumes: the last output is the
+    bag's last one."""
     assert set(dec) == set(NAV_OUT), log
-    for topic, fields in dec.items():
-        assert _all_finite(fields), f"{topic}: non-finite values published\n{log}"
-    # It resumes: the last output is the bag's last one.
     last = _stamps(contents.topics["/navigator/odom"].fields)[-1]
     assert _stamps(dec["/navigator/odom"])[-1] >= last, log
     assert "NaN or infinity" in log and "input events: non-finite 1\n" in log + "\n", log
-    assert rc == 0, log
+
+
+def _navigator_odometry_unchanged(got, dec, contents, log) -> None:
+    """A NaN truth is dropped as lost: odometry goes on, the same bytes."""
+    ref = [padded(p) for p in contents.topics["/navigator/odom"].payloads]
+    assert got["/navigator/odom"] == ref, log
+
+
+def _variation_resumes(got, dec, contents, log) -> None:
+    """Why (1): old code published NaN variation data."""
+    assert set(dec) == set(VAR_OUT), log
+    want = _stamps(contents.topics["/variation/odom"].fields)[-1]
+    assert _stamps(dec["/variation/odom"])[-1] == want, log
+    assert "NaN or infinity" in log, log
+
+
+def _one_measured_message_less(got, dec, contents, log) -> None:
+    """No measured message for the NaN input; the model goes on."""
+    want = len(contents.topics["/variation/imu_measured"].fields) - 1
+    assert len(dec["/variation/imu_measured"]) == want, log
+
+
+def _nothing_else(got, dec, contents, log) -> None:
+    """Only what every case checks."""
+
+
+@pytest.mark.parametrize(
+    ("target", "faults", "check"),
+    [
+        pytest.param(NAV, ["--nan-imu", "205"], _navigator_resumes, id="navigator-imu"),
+        pytest.param(NAV, ["--nan-odom", "300"], _navigator_odometry_unchanged,
+                     id="navigator-truth"),
+        pytest.param(VAR, ["--nan-imu", "150"], _variation_resumes, id="variation-imu"),
+        pytest.param(VAR, ["--nan-odom", "151"], _nothing_else, id="variation-odom"),
+        pytest.param(MODEL, ["--nan-imu", "100", "--no-wait-odom"], _one_measured_message_less,
+                     id="imu_model-imu"),
+    ],
+)  # fmt: skip
+def test_nan_input_never_published(bag, tmp_path, ros_env, procs, target, faults, check) -> None:
+    """A NaN in one input message: nothing non-finite is published, the event is logged and
+    counted once, the node exits 0; ``check``: what else the case shows."""
+    got, dec, log, rc = _run_case(bag, tmp_path, ros_env, procs, target, faults)
+    for topic, fields in dec.items():
+        assert _all_finite(fields), f"{topic}: non-finite values published\n{log}"
+    check(got, dec, bag[1], log)
+    assert "non-finite 1" in log and rc == 0, log
+
+
+# ---------------------------------------------------------------------------------------------
+# navigator_node: lost and late input
+# ---------------------------------------------------------------------------------------------
 
 
 def test_navigator_lost_truth_at_output_instant(bag, tmp_path, ros_env, procs) -> None:
     """Why (2): one truth message missing at an output time stopped the output for good. The
     navigator continues from its own state: every odometry equals the uninterrupted run's, only
     the errors at that stamp are missing."""
-    path, contents = bag
+    contents = bag[1]
     m = 200  # an output instant (N = 10)
-    got, log, rc = _drive(tmp_path, ros_env, procs, "navigator_node",
-                          ("/variation/imu", "/variation/odom"), NAV_OUT, path,
-                          ["--drop-odom", str(m)])  # fmt: skip
+    got, _, log, rc = _run_case(bag, tmp_path, ros_env, procs, NAV, ["--drop-odom", str(m)])
     ref = [padded(p) for p in contents.topics["/navigator/odom"].payloads]
     assert got["/navigator/odom"] == ref, log  # same bytes: ran on from its own state
     ref_err = contents.topics["/navigator/error/position"]
@@ -168,27 +225,11 @@ def test_navigator_lost_truth_at_output_instant(bag, tmp_path, ros_env, procs) -
     assert rc == 0, log
 
 
-def test_navigator_nan_truth(bag, tmp_path, ros_env, procs) -> None:
-    """A NaN in a truth message: dropped as lost; no NaN error is published, odometry goes on."""
-    path, contents = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "navigator_node",
-                          ("/variation/imu", "/variation/odom"), NAV_OUT, path,
-                          ["--nan-odom", "300"])  # fmt: skip
-    dec = _decoded(got, NAV_OUT)
-    for topic, fields in dec.items():
-        assert _all_finite(fields), f"{topic}: non-finite values published\n{log}"
-    ref = [padded(p) for p in contents.topics["/navigator/odom"].payloads]
-    assert got["/navigator/odom"] == ref, log
-    assert "non-finite 1" in log and rc == 0, log
-
-
 def test_navigator_gap_between_first_messages(bag, tmp_path, ros_env, procs) -> None:
     """The IMU period is not learned from one interval: with the second IMU message missing,
     the navigator still finds T and produces the usual output rate."""
-    path, contents = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "navigator_node",
-                          ("/variation/imu", "/variation/odom"), NAV_OUT, path,
-                          ["--drop-imu", "2"])  # fmt: skip
+    contents = bag[1]
+    got, _, log, rc = _run_case(bag, tmp_path, ros_env, procs, NAV, ["--drop-imu", "2"])
     assert "IMU period T = 5000000 ns" in log, log
     stamps = _stamps(cdr.deserialize(cdr.ODOMETRY, got["/navigator/odom"]))
     assert np.all(np.diff(stamps) == 10 * 5_000_000), log
@@ -199,11 +240,7 @@ def test_navigator_gap_between_first_messages(bag, tmp_path, ros_env, procs) -> 
 
 def test_navigator_restarted_source(bag, tmp_path, ros_env, procs) -> None:
     """The source restarts (stamps jump back): a new run, said once; the node keeps running."""
-    path, _ = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "navigator_node",
-                          ("/variation/imu", "/variation/odom"), NAV_OUT, path,
-                          ["--jump-back", "400:100"])  # fmt: skip
-    dec = _decoded(got, NAV_OUT)
+    _, dec, log, rc = _run_case(bag, tmp_path, ros_env, procs, NAV, ["--jump-back", "400:100"])
     assert all(_all_finite(f) for f in dec.values()), log
     assert log.count("the source restarted") == 1 and "restart 1" in log, log
     assert "run 2 starts" in log, log
@@ -211,48 +248,3 @@ def test_navigator_restarted_source(bag, tmp_path, ros_env, procs) -> None:
     # The new run (from the truth before the restart point) reaches the end of the input.
     assert stamps[-1] >= _stamps(bag[1].topics["/navigator/odom"].fields)[-1] - 10 * 5_000_000
     assert rc == 0, log
-
-
-# ---------------------------------------------------------------------------------------------
-# variation_node and imu_model_node
-# ---------------------------------------------------------------------------------------------
-
-
-def test_variation_nan_reference_imu(bag, tmp_path, ros_env, procs) -> None:
-    """Why (1): a NaN in one reference IMU message; old code published NaN variation data."""
-    path, contents = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "variation_node",
-                          ("/reference/imu", "/reference/odom"), VAR_OUT, path,
-                          ["--nan-imu", "150"])  # fmt: skip
-    dec = _decoded(got, VAR_OUT)
-    assert set(dec) == set(VAR_OUT), log
-    for topic, fields in dec.items():
-        assert _all_finite(fields), f"{topic}: non-finite values published\n{log}"
-    assert _stamps(dec["/variation/odom"])[-1] == _stamps(
-        contents.topics["/variation/odom"].fields
-    )[-1], log
-    assert "NaN or infinity" in log and "non-finite 1" in log, log
-    assert rc == 0, log
-
-
-def test_variation_nan_reference_odom(bag, tmp_path, ros_env, procs) -> None:
-    path, _ = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "variation_node",
-                          ("/reference/imu", "/reference/odom"), VAR_OUT, path,
-                          ["--nan-odom", "151"])  # fmt: skip
-    dec = _decoded(got, VAR_OUT)
-    for topic, fields in dec.items():
-        assert _all_finite(fields), f"{topic}: non-finite values published\n{log}"
-    assert "non-finite 1" in log and rc == 0, log
-
-
-def test_imu_model_nan_input(bag, tmp_path, ros_env, procs) -> None:
-    """A NaN in an ideal IMU message: no measured message for it, the model goes on."""
-    path, contents = bag
-    got, log, rc = _drive(tmp_path, ros_env, procs, "imu_model_node",
-                          ("/variation/imu", "/variation/odom"), MEASURED, path,
-                          ["--nan-imu", "100", "--no-wait-odom"])  # fmt: skip
-    dec = _decoded(got, MEASURED)["/variation/imu_measured"]
-    assert _all_finite(dec), log
-    assert len(dec) == len(contents.topics["/variation/imu_measured"].fields) - 1, log
-    assert "non-finite 1" in log and rc == 0, log

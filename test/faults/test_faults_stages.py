@@ -13,7 +13,7 @@ import pytest
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import load_scenario
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows
+from strapdown_ros.stages.intake import InputEvents, nonfinite_rows
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
@@ -107,13 +107,14 @@ def test_events_one_line_each_flood_limited_per_class() -> None:
 
 
 def _navigator(scenario, log):
-    from strapdown_ros.config.navigator import navigator_spec
-    from strapdown_ros.stages.navigation import NavigationStage, input_end_ns
+    from strapdown_ros.config import navigator_spec
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.stages.navigator import NavigatorStage
 
     spec = navigator_spec(scenario)
-    return NavigationStage.for_scenario(
-        scenario, spec, end_ns=input_end_ns(scenario, spec.imu_topic), info=log, warn=log,
-        error=log,
+    return NavigatorStage.for_scenario(
+        scenario, spec, end_ns=resolve_plan(scenario).last_stamp(spec.imu_topic), info=log,
+        warn=log, error=log,
     )  # fmt: skip
 
 
@@ -172,10 +173,10 @@ VAR = {"/variation/imu": cdr.IMU, "/variation/odom": cdr.ODOMETRY}
 
 
 def _variation(scenario, log):
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
+    from strapdown_ros.plan import resolve_plan
     from strapdown_ros.stages.variation import VariationStage
 
-    cycles = output_cycles(scenario, build_trajectory(scenario))
+    cycles = resolve_plan(scenario).cycles
     return VariationStage(scenario, cycles, info=log, warn=log, error=log)
 
 
@@ -200,10 +201,10 @@ def test_variation_restarted_source(scenario, contents) -> None:
 
 
 def test_measurement_nonfinite_and_restart(scenario, contents) -> None:
-    from strapdown_ros.stages.measurement import MeasuredImuStream
+    from strapdown_ros.stages.imu_errors import ImuErrorsStage
 
     log = _Log()
-    stream = MeasuredImuStream(scenario, info=log, warn=log, error=log)
+    stream = ImuErrorsStage(scenario, info=log, warn=log, error=log)
     payloads = [bytes(p) for p in contents.topics["/variation/imu"].payloads]
     payloads[50] = _with_nan(cdr.IMU, payloads[50], "angular_velocity")
     payloads = payloads[:300] + payloads[100:]  # the source restarts at cycle ~100

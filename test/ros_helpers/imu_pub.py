@@ -14,6 +14,7 @@ import sys
 import time
 
 from imu_pattern import make_imu
+from ros_child import reliable_qos, ros_node, wait_acked, wait_matched
 
 
 def main() -> int:
@@ -24,26 +25,12 @@ def main() -> int:
     args = parser.parse_args()
     deadline = time.monotonic() + args.timeout
 
-    import rclpy
-    from rclpy.duration import Duration
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
-    qos = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=max(args.count, 1),
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
-    )
-    rclpy.init()
-    node = rclpy.create_node("smoke_imu_publisher")
-    try:
-        pub = node.create_publisher(Imu, args.topic, qos)
-        while pub.get_subscription_count() < 1:
-            if time.monotonic() > deadline:
-                print("TIMEOUT waiting for a subscription", flush=True)
-                return 3
-            rclpy.spin_once(node, timeout_sec=0.05)
+    with ros_node("smoke_imu_publisher") as node:
+        pub = node.create_publisher(Imu, args.topic, reliable_qos(max(args.count, 1)))
+        if not wait_matched(node, deadline, [pub], what="a subscription", step_s=0.05):
+            return 3
         print("MATCHED", flush=True)
 
         ready, _, _ = select.select([sys.stdin], [], [], max(deadline - time.monotonic(), 0.0))
@@ -53,15 +40,10 @@ def main() -> int:
 
         for i in range(args.count):
             pub.publish(make_imu(i))
-        remaining = max(deadline - time.monotonic(), 0.1)
-        if not pub.wait_for_all_acked(Duration(nanoseconds=int(remaining * 1e9))):
-            print("TIMEOUT waiting for acknowledgements", flush=True)
+        if not wait_acked([pub], deadline):
             return 3
         print(f"PUBLISHED {args.count} acked", flush=True)
         return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
 
 
 if __name__ == "__main__":

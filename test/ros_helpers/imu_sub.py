@@ -12,6 +12,7 @@ import sys
 import time
 
 from imu_pattern import differences, expected_fields, fields_of
+from ros_child import reliable_qos, ros_node, wait_matched
 
 
 def main() -> int:
@@ -24,27 +25,16 @@ def main() -> int:
     deadline = time.monotonic() + args.timeout
 
     import rclpy
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu
 
-    qos = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=max(args.count, 1),
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
-    )
     received: list[dict] = []
-    rclpy.init()
-    node = rclpy.create_node("smoke_imu_subscriber")
-    try:
+    with ros_node("smoke_imu_subscriber") as node:
         sub = node.create_subscription(
-            Imu, args.topic, lambda msg: received.append(fields_of(msg)), qos
-        )
-        while sub.get_publisher_count() < 1:
-            if time.monotonic() > deadline:
-                print("TIMEOUT waiting for a publisher", flush=True)
-                return 3
-            rclpy.spin_once(node, timeout_sec=0.05)
+            Imu, args.topic, lambda msg: received.append(fields_of(msg)),
+            reliable_qos(max(args.count, 1)),
+        )  # fmt: skip
+        if not wait_matched(node, deadline, subs=[sub], what="a publisher", step_s=0.05):
+            return 3
         print("READY", flush=True)
 
         while len(received) < args.count:
@@ -70,9 +60,6 @@ def main() -> int:
             return 1
         print("OK", flush=True)
         return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
 
 
 if __name__ == "__main__":

@@ -12,12 +12,13 @@ topic got exactly its count, 1 on a wrong count, 3 on timeout.
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import pickle
 import sys
 import threading
 import time
+
+from ros_child import message_type, reliable_qos
 
 
 def main() -> int:
@@ -31,20 +32,13 @@ def main() -> int:
     deadline = time.monotonic() + args.timeout
 
     import rclpy
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-    qos = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=args.depth,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.VOLATILE,
-    )
+    qos = reliable_qos(args.depth)
     expected: dict[str, int] = {}
     types: dict[str, type] = {}
     for spec in args.topic:
         name, msgtype, count = spec.rsplit("=", 2)
-        package, _, cls = msgtype.split("/")
-        types[name] = getattr(importlib.import_module(f"{package}.msg"), cls)
+        types[name] = message_type(msgtype)
         expected[name] = int(count)
     payloads: dict[str, list[bytes]] = {name: [] for name in expected}
     arrival: dict[str, list[float]] = {name: [] for name in expected}

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.polynomial import polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core.earth import meridian_radius
 from strapdown_ros.core.trajectory.base import LocalTruth, TrajectoryError
 from strapdown_ros.core.trajectory.latlon_path import LatLonPath, bounds, sort_times
 
@@ -46,6 +47,17 @@ _TRACK, _NED = 0, 1
 PITCH_LIMIT = math.radians(89.9)
 ALTITUDE_MIN = -10_000.0
 LATITUDE_LIMIT = math.radians(89.9)
+
+# Latitude reach (SegmentsTrajectory._check_latitude_reach): meridian radius at the equator and
+# the pole, the bound c of |1/(R_N + h) - 1/(R_m + h)| (R_m their mean, h >= ALTITUDE_MIN), the
+# largest 1/(R_N + h), and the Gauss-Legendre rules (16 points, 8 for the error estimate).
+_R_EQUATOR = float(meridian_radius(0.0))
+_R_POLE = float(meridian_radius(math.pi / 2))
+_R_MEAN = 0.5 * (_R_EQUATOR + _R_POLE)
+_W_BAND = 0.5 * (_R_POLE - _R_EQUATOR) / (_R_EQUATOR + ALTITUDE_MIN) ** 2
+_W_MAX = 1.0 / (_R_EQUATOR + ALTITUDE_MIN)
+_GL16 = np.polynomial.legendre.leggauss(16)
+_GL8 = np.polynomial.legendre.leggauss(8)
 
 # Quintic smoothstep and its integral, ascending powers of x in [0, 1].
 _W = np.array([0.0, 0.0, 0.0, 10.0, -15.0, 6.0])
@@ -257,6 +269,7 @@ class SegmentsTrajectory:
             [np.trim_zeros(c, "b").tolist() or [0.0] for c in p.coef] for p in self._pieces
         ]
         self._duration = float(sum(s.duration for s in self.segments))
+        self._check_latitude_reach(lat)
         breaks = np.append(self._t0, self._duration)
         self._path = LatLonPath(breaks, lat, lon, self._vn_ve_h)
         bad = np.abs(self._path.node_y[:, 0]) > LATITUDE_LIMIT
@@ -409,6 +422,80 @@ class SegmentsTrajectory:
             raise TrajectoryError(
                 ("segments", k, key), f"altitude would fall to {lo:.1f} m, below -10 km"
             )
+
+    #: Latitude-reach quadrature: longest interval (s), largest course change per interval
+    #: (rad), intervals per vectorized chunk.
+    REACH_STEP = 20.0
+    REACH_TURN = 1.0
+    REACH_CHUNK = 4096
+
+    def _check_latitude_reach(self, lat0: float) -> None:
+        """Reject a path whose latitude certainly leaves ±89.9°, before it is integrated.
+
+        ``φ(t) - φ0 = ∫ v_N w dt`` with ``w = 1/(R_N(φ) + h)`` (Groves 2013 eq. (2.111)).
+        ``R_N`` lies between its equator and pole values and ``h >= -10 km``, so ``|w - 1/(R_m +
+        h)| <= c`` (``R_m`` their mean, ``c`` = :data:`_W_BAND`, 0.5 % of ``w``) and ``φ(t) - φ0``
+        lies within ``∫ v_N/(R_m + h) dt ± c ∫ |v_H| dt`` (``v_H`` the horizontal speed, ``>=
+        |v_N|``). Both integrals are summed piece by piece in time order (Gauss-Legendre, 16
+        points on intervals of at most :attr:`REACH_STEP` and :attr:`REACH_TURN` of course
+        change, the difference to the 8-point rule added to the band), and the first interval
+        end where the whole band lies beyond ±89.9° raises: such a path would otherwise be
+        solved over its whole length first (:class:`LatLonPath`, whose cost grows with the
+        length and without bound once the latitude passes the pole). Skipped when the largest
+        speed of each piece times its length cannot carry the latitude to the limit.
+
+        Raises
+        ------
+        TrajectoryError
+            ``("segments", i)``: latitude would exceed ±89.9° by t = ... s.
+        """
+        vmax, turn = [], []
+        for p in self._pieces:
+            lo_p, hi_p = _poly_extremes(p.coef[_P])
+            if p.mode == _TRACK:
+                vmax.append(max(-lo_p, hi_p))
+                lo_r, hi_r = _poly_extremes(npoly.polyder(p.coef[_Q]))
+                turn.append(max(-lo_r, hi_r) / p.length)
+            else:
+                lo_q, hi_q = _poly_extremes(p.coef[_Q])
+                vmax.append(math.hypot(max(-lo_p, hi_p), max(-lo_q, hi_q)))
+                turn.append(0.0)
+        reach = sum(v * p.length for v, p in zip(vmax, self._pieces, strict=True)) * _W_MAX
+        if abs(lat0) + reach <= LATITUDE_LIMIT:
+            return
+        a_sum = b_sum = q_sum = 0.0
+        for p, rate in zip(self._pieces, turn, strict=True):
+            n = max(
+                1,
+                math.ceil(p.length / self.REACH_STEP),
+                math.ceil(p.length * rate / self.REACH_TURN),
+            )
+            for j0 in range(0, n, self.REACH_CHUNK):
+                j = np.arange(j0, min(n, j0 + self.REACH_CHUNK) + 1, dtype=np.float64)
+                edges = p.t0 + p.length * j / n
+                lo, hi = edges[:-1], edges[1:]
+                mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+                a, b = [], []
+                for x, w in (_GL16, _GL8):
+                    vn, ve, h = self._vn_ve_h(mid[:, None] + half[:, None] * x)
+                    shape = (lo.size, x.size)
+                    vn, ve, h = vn.reshape(shape), ve.reshape(shape), h.reshape(shape)
+                    a.append(half * ((vn / (_R_MEAN + h)) @ w))
+                    b.append(half * (np.hypot(vn, ve) @ w))
+                a_cum = a_sum + np.cumsum(a[0])
+                b_cum = b_sum + np.cumsum(b[0])
+                q_cum = q_sum + np.cumsum(np.abs(a[0] - a[1]) + _W_BAND * np.abs(b[0] - b[1]))
+                band = _W_BAND * b_cum + q_cum
+                beyond = (lat0 + a_cum - band > LATITUDE_LIMIT) | (
+                    lat0 + a_cum + band < -LATITUDE_LIMIT
+                )
+                if np.any(beyond):
+                    t_bad = float(hi[np.argmax(beyond)])
+                    raise TrajectoryError(
+                        ("segments", p.segment),
+                        f"latitude would exceed ±89.9° by t = {t_bad:.3f} s",
+                    )
+                a_sum, b_sum, q_sum = float(a_cum[-1]), float(b_cum[-1]), float(q_cum[-1])
 
     # -- evaluation --------------------------------------------------------------------------
 

@@ -1,7 +1,7 @@
 """TF and map-frame outputs of the nodes (docs/interface.md, "Frames and TF").
 
 Each node that publishes Odometry or Imu also publishes what :class:`~strapdown_ros.stages.
-frames.FramesStage` derives from it: ``trajectory_node`` ``/tf_static`` (transient local) and
+frames.TFStage` derives from it: ``trajectory_node`` ``/tf_static`` (transient local) and
 ``map → base_link``, ``variation_node`` ``base_link → variation_imu``, ``navigator_node``
 ``map → <navigator frame>``, and each its map-frame Odometry (and Δv/Δq topics when
 ``recording.increments`` is true). Live TF needs the ``tf2_msgs`` Python bindings, which ROS 2's
@@ -17,8 +17,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.nodes._common import message_class
-from strapdown_ros.stages.frames import FramesStage, node_derived_topics
+from strapdown_ros.nodes.message_types import message_class
+from strapdown_ros.plan.model import Plan
+from strapdown_ros.stages.tf import node_derived_topics
 
 __all__ = ["TF_OFF_REASON", "derived_outputs", "static_qos", "tf_unavailable"]
 
@@ -41,12 +42,12 @@ def tf_unavailable() -> str | None:
 
 
 def derived_outputs(
-    node: Node, frames: FramesStage, outputs: Iterable[str], *, static: bool = False
+    node: Node, plan: Plan, outputs: Iterable[str], *, static: bool = False
 ) -> dict[str, str]:
     """The derived topics (name → type) a node publishes beside its ``outputs``
-    (:func:`~strapdown_ros.stages.frames.node_derived_topics`). Without tf2_msgs the TF topics
+    (:func:`~strapdown_ros.stages.tf.node_derived_topics`). Without tf2_msgs the TF topics
     are left out and the node logs why, once."""
-    topics = node_derived_topics(frames, outputs, static=static)
+    topics = node_derived_topics(plan, outputs, static=static)
     if any(m == cdr.TF_MESSAGE for m in topics.values()):
         error = tf_unavailable()
         if error is not None:

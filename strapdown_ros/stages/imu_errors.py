@@ -2,7 +2,7 @@
 
 The one implementation of the measurement stage, between
 :mod:`strapdown_ros.core.imu_errors` (the model, ROS-free) and the message world:
-``strapdown-sim generate`` and ``imu_model_node`` both feed :class:`MeasuredImuStream`, so the
+``strapdown-sim generate`` and ``imu_model_node`` both feed :class:`ImuErrorsStage`, so the
 bag and the live topic carry the same bytes.
 
 * **Topics.** ``imu_errors.input_topic`` (default ``recording.topics.variation_imu``) becomes
@@ -36,28 +36,24 @@ from strapdown_ros.messages import (
     imu_fields_from_increments,
     imu_increments,
 )
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches
-from strapdown_ros.stages.reference import build_trajectory, output_cycles
+from strapdown_ros.stages.intake import (
+    InputEvents,
+    decode_runs,
+    format_stamp,
+    quiet,
+    screen,
+    stamp_verdict,
+)
 
 __all__ = [
-    "MeasuredImuStream",
-    "generate_measured_stream",
+    "ImuErrorsStage",
     "imu_errors_spec",
-    "imu_model_topics",
-    "last_input_cycle",
+    "imu_errors_topics",
     "measured_covariances",
     "measured_imu_fields",
 ]
 
 Log = Callable[[str], None]
-
-#: An older stamp more than this many cycles behind the last one means the input restarted.
-MAX_LATE_CYCLES = 10
-
-
-def _ignore(_: str) -> None:
-    return None
-
 
 def imu_errors_spec(scenario: Scenario) -> ImuErrorsSpec:
     """The scenario's ``imu_errors`` section (ScenarioError ``imu_errors`` if it has none)."""
@@ -66,30 +62,9 @@ def imu_errors_spec(scenario: Scenario) -> ImuErrorsSpec:
     return scenario.imu_errors
 
 
-def imu_model_topics(scenario: Scenario) -> tuple[str, str]:
+def imu_errors_topics(scenario: Scenario) -> tuple[str, str]:
     """``(input, output)`` topics of the model: the section's, else ``recording.topics``'."""
     return imu_errors_spec(scenario).topics(scenario.recording.topics)
-
-
-def generate_measured_stream(scenario: Scenario) -> MeasuredImuStream | None:
-    """The :class:`MeasuredImuStream` of ``strapdown-sim generate`` (None without ``imu_errors``).
-
-    Its topics were checked with the scenario (``imu_errors.input_topic`` is an ideal IMU topic
-    the scenario generates: :func:`strapdown_ros.config.imu_errors.check_imu_errors`).
-    """
-    return None if scenario.imu_errors is None else MeasuredImuStream(scenario)
-
-
-def last_input_cycle(scenario: Scenario, input_topic: str) -> int | None:
-    """Last cycle the scenario publishes on ``input_topic`` (None: not one of its IMU topics).
-
-    The reference IMU ends at cycle M, the variation streams at the last even cycle < M.
-    """
-    key = next((k for k, v in scenario.recording.topics.items() if v == input_topic), None)
-    if key not in ("reference_imu", "variation_imu", "variation_reference_imu"):
-        return None
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    return cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
 
 
 def measured_covariances(model: ImuErrorModel) -> tuple[np.ndarray, np.ndarray]:
@@ -134,12 +109,7 @@ def measured_imu_fields(ideal: ImuFields, model: ImuErrorModel, period_ns: int) 
     )
 
 
-def format_stamp(stamp_ns: int) -> str:
-    """``sec.nanosec`` of a stamp (ns since the epoch)."""
-    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
-
-
-class MeasuredImuStream:
+class ImuErrorsStage:
     """Ideal Imu messages in (in chunks of any size), measured ones out; no rclpy.
 
     Parameters
@@ -147,7 +117,7 @@ class MeasuredImuStream:
     scenario : Scenario
         Supplies the cycle grid (``start_time_ns``, T) and the ``imu_errors`` section.
     input_topic, output_topic : str, optional
-        Override the topics of :func:`imu_model_topics` (node parameters).
+        Override the topics of :func:`imu_errors_topics` (node parameters).
     info, warn, error : callable
         Loggers (the node's); gaps and dropped messages go to ``warn``, rejected ones to
         ``error``.
@@ -170,9 +140,9 @@ class MeasuredImuStream:
         input_topic: str | None = None,
         output_topic: str | None = None,
         *,
-        info: Log = _ignore,
-        warn: Log = _ignore,
-        error: Log = _ignore,
+        info: Log = quiet,
+        warn: Log = quiet,
+        error: Log = quiet,
     ) -> None:
         self.spec = imu_errors_spec(scenario)
         self.params = self.spec.parameters()
@@ -200,36 +170,20 @@ class MeasuredImuStream:
         bad = (offset % self.period_ns != 0) | (m < 1)
         return np.where(bad, -1, m)
 
-    def _nonfinite(self, ideal: ImuFields, stamps: np.ndarray, cycles: np.ndarray) -> None:
-        """Mark the messages with a non-finite value as dropped (cycle -2); log each stretch."""
-        bad = nonfinite_rows(ideal)
-        if bad is None:
-            return
-        cycles[bad] = -2
-        self.events.dropped(self.input_topic, stamps[bad].tolist())
-        for a, b in stretches(bad):
-            span = format_stamp(int(stamps[a]))
-            if b > a:
-                span += f"..{format_stamp(int(stamps[b]))} ({b - a + 1} messages)"
-            self.events(
-                "non-finite",
-                f"{self.input_topic}: stamp {span}: NaN or infinity in the message; dropped "
-                "(no measured message for it; the model is advanced over the missing cycle)",
-                error=True,
-            )
-
     def feed(self, ideal: ImuFields) -> ImuFields | None:
         """Measured messages of the ideal messages ``ideal`` (None if all were dropped)."""
+        topic = self.input_topic
+        ideal, _ = screen(ideal, topic, self.events, "dropped (no measured message for it; the "
+                          "model is advanced over the missing cycle)",
+                          lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
+        if ideal is None:
+            return None
         stamps = np.asarray(ideal.stamps_ns, dtype=np.int64)
         cycles = self._cycles(stamps)
-        self._nonfinite(ideal, stamps, cycles)
         parts: list[ImuFields] = []
         i, n = 0, len(stamps)
         while i < n:
             m = int(cycles[i])
-            if m == -2:
-                i += 1
-                continue
             if m < 0:
                 self.events(
                     "off-grid stamp",
@@ -241,8 +195,9 @@ class MeasuredImuStream:
                 i += 1
                 continue
             last = self.last_cycle
-            if m <= last:
-                if m == 1 or m < last - MAX_LATE_CYCLES:
+            verdict = stamp_verdict(m, last, 1, restart_below=1)
+            if verdict in ("restart", "duplicate", "out-of-order"):
+                if verdict == "restart":
                     self.events(
                         "restart",
                         f"{self.input_topic}: stamp {self.describe(m)} after {self.describe(last)}"
@@ -252,7 +207,7 @@ class MeasuredImuStream:
                     self.last_cycle = last = 0
                     self.runs += 1
                 else:
-                    what = "duplicate stamp" if m == last else "out-of-order stamp"
+                    what = f"{verdict} stamp"
                     self.events(
                         what,
                         f"{self.input_topic}: {what} {self.describe(m)} after "
@@ -293,42 +248,22 @@ class MeasuredImuStream:
         return out
 
     def on_payload(self, payload: bytes | memoryview) -> bytes | None:
-        """One serialized ideal Imu message in, its serialized measured message out (or None).
-
-        A payload that does not decode as ``sensor_msgs/Imu`` is logged and dropped.
-        """
-        try:
-            ideal = cdr.deserialize(cdr.IMU, [payload])
-        except Exception as exc:  # any decoding problem rejects the message
-            self.events(
-                "malformed",
-                f"{self.input_topic}: rejected a message that does not decode: {exc}",
-                error=True,
-            )
-            return None
-        out = self.feed(ideal)  # type: ignore[arg-type]
-        if out is None:
-            return None
-        return bytes(cdr.serialize(out)[0])
+        """One serialized ideal Imu message in, its measured message out (None: dropped)."""
+        out = self.on_payloads([payload])
+        return out[0] if out else None
 
     def on_payloads(self, payloads: list[bytes | memoryview]) -> list[bytes]:
-        """Several serialized ideal Imu messages in, the serialized measured messages out.
-
-        The same bytes as :meth:`on_payload` one by one (the model applied in chunks is the
-        model applied to the whole stream), decoded and serialized with one CDR call each. A
-        batch that does not decode as a whole (a malformed message, mixed frame ids) is taken
-        one by one, so each bad message is reported and only it is dropped.
-        """
-        if not payloads:
-            return []
-        try:
-            ideal = cdr.deserialize(cdr.IMU, payloads)
-        except Exception:  # one by one: on_payload names what is wrong with which message
-            return [d for d in map(self.on_payload, payloads) if d is not None]
-        out = self.feed(ideal)  # type: ignore[arg-type]
-        if out is None:
-            return []
-        return [bytes(d) for d in cdr.serialize(out)]
+        """Serialized ideal Imu messages in, the serialized measured messages out: the same
+        bytes for any chunking (the model applied in chunks is the model applied to the whole
+        stream). Decoded in one CDR call, or message by message when they do not decode
+        together (:func:`~strapdown_ros.stages.intake.decode_runs`: a malformed message is
+        reported and only it is dropped)."""
+        out: list[bytes] = []
+        for _, ideal in decode_runs(cdr.IMU, payloads, self.input_topic, self.events):
+            measured = self.feed(ideal)
+            if measured is not None:
+                out += [bytes(d) for d in cdr.serialize(measured)]
+        return out
 
     def feed_batches(self, batches: list[Batch]) -> list[Batch]:
         """``generate``'s path: the output batch of the input topic's batch among ``batches``."""

@@ -1,6 +1,6 @@
 """The navigation stage: the navigator on messages, for ``generate`` and ``navigator_node``.
 
-:class:`NavigationStage` is the one streaming implementation: it takes the Imu and truth
+:class:`NavigatorStage` is the one streaming implementation: it takes the Imu and truth
 Odometry messages of its input (raw payloads or decoded fields, in any chunking), checks them
 (period, gaps, order, repeats, frames), runs the navigator of :mod:`strapdown_ros.core.
 navigation` over each contiguous stretch (:class:`NavigatorRun`) and returns the serialized
@@ -19,65 +19,49 @@ from numpy.typing import NDArray
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
-from strapdown_ros.config import Initial, Scenario
-from strapdown_ros.config.navigator import (
-    INPUT_STREAMS,
-    OUTPUT_TOPICS,
-    NavigatorSpec,
-    navigator_spec,
-)
-from strapdown_ros.core.earth import (
-    OMEGA_IE_VEC,
-    dcm_ecef_to_ned,
-    dcm_ned_to_ecef,
-    ecef_to_geodetic,
-    geodetic_to_ecef,
-)
+from strapdown_ros.config import Initial, Scenario, navigator_spec
+from strapdown_ros.config.navigator import INPUT_STREAMS, OUTPUT_TOPICS, NavigatorSpec
 from strapdown_ros.core.navigation import (
-    MultirateNavigator,
-    NavSolution,
     NavState,
-    SimultaneousNavigator,
-    VerticalDamping,
-)
-from strapdown_ros.core.navigation.errors import (
-    attitude_error_young,
-    position_error_ned,
-    velocity_error_ned,
-)
-from strapdown_ros.core.rotations import (
-    dcm_from_euler,
-    dcm_from_quat,
-    euler_from_dcm,
-    quat_from_dcm,
 )
 from strapdown_ros.messages import (
-    SERVICE_UNKNOWN,
-    STATUS_NO_FIX,
     EarthState,
     ImuFields,
-    NavSatFixFields,
     OdometryFields,
-    Vector3StampedFields,
     imu_increments,
-    navsatfix_fields_from_geodetic,
-    odometry_fields_from_ecef,
     odometry_state,
-    vector3_stamped_fields,
 )
-from strapdown_ros.stages.checks import InputEvents, nonfinite_rows, stretches, without_rows
+from strapdown_ros.stages.intake import (
+    InputEvents,
+    decode_one,
+    format_stamp,
+    nonfinite_rows,
+    quiet,
+    screen,
+    stamp_verdict,
+    stretches,
+    without_rows,
+)
+from strapdown_ros.stages.navigator_outputs import NavigatorOutputs
+from strapdown_ros.stages.navigator_run import NavigatorRun, StreamError, build_navigator
+from strapdown_ros.stages.navigator_truth import (
+    TRUTH_KEEP,
+    TruthStore,
+    initial_state_from_scenario,
+    initial_state_from_truth,
+    state_rows,
+)
 
 __all__ = [
     "INPUT_STREAMS",
     "OUTPUT_TOPICS",
-    "NavigationStage",
+    "NavigatorStage",
     "NavigatorOutputs",
     "NavigatorRun",
     "StreamError",
     "build_navigator",
     "initial_state_from_scenario",
     "initial_state_from_truth",
-    "input_end_ns",
     "navigate_messages",
 ]
 
@@ -85,448 +69,6 @@ F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
 Log = Callable[[str], None]
 Message = tuple[str, int, bytes]
-
-#: Truth messages kept for (re)starting runs.
-TRUTH_KEEP = 4096
-#: An IMU stamp more than this many periods behind the expected one: the source restarted.
-MAX_LATE_CYCLES = 10
-
-
-class StreamError(ValueError):
-    """The input messages cannot be integrated as they are (gap, out of order, wrong rate)."""
-
-
-def _quiet(_: str) -> None:
-    return None
-
-
-def format_stamp(stamp_ns: int) -> str:
-    """``sec.nanosec`` of a stamp (ns since the epoch)."""
-    return f"{stamp_ns // 1_000_000_000}.{stamp_ns % 1_000_000_000:09d}"
-
-
-def build_navigator(
-    spec: NavigatorSpec, initial: NavState, t_gyr: float, n: int | None = None
-) -> MultirateNavigator | SimultaneousNavigator:
-    """The core navigator of a resolved ``spec`` starting at ``initial``.
-
-    ``t_gyr``: IMU period (s); ``n``: N (default ``spec.n``; ``navigator_node`` may derive it
-    from ``nav_period_s``).
-    """
-    n = spec.n if n is None else n
-    vd = spec.vertical_damping
-    damping = None
-    if vd is not None:
-        damping = VerticalDamping(k1=vd.k1, k2=vd.k2, paper_signs=vd.paper_signs)
-    gravity = str(spec.gravity_model)
-    if spec.algorithm == "simultaneous":
-        return SimultaneousNavigator(
-            initial, t_gyr, n, gravity, spec.normalize_quaternion, spec.table1_radii, damping
-        )
-    return MultirateNavigator(
-        initial, t_gyr, n, spec.p, mode=str(spec.mode), gravity_model=gravity,
-        normalize=spec.normalize_quaternion, table1_radii=spec.table1_radii, damping=damping,
-    )  # fmt: skip
-
-
-# --------------------------------------------------------------------------------------------
-# Truth and initialization
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Truth:
-    """Truth rows in navigation terms (from Odometry messages): ECEF position (m), geodetic
-    latitude, longitude (rad), altitude (m), NED velocity (m/s), ``C_B^N``, body rate relative
-    to the Earth (rad/s, FRD)."""
-
-    r_e: F64
-    lat: F64
-    lon: F64
-    alt: F64
-    v_ned: F64
-    c_b_n: F64
-    omega_eb_b: F64
-
-
-def _truth(state: EarthState) -> _Truth:
-    lat, lon, alt = ecef_to_geodetic(state.r_e)
-    c_e_n = dcm_ecef_to_ned(lat, lon)
-    return _Truth(
-        state.r_e,
-        lat,
-        lon,
-        alt,
-        np.einsum("nij,nj->ni", c_e_n, state.v_e),
-        c_e_n @ state.c_b_e,
-        state.omega_eb_b,
-    )
-
-
-def _rows(state: EarthState, rows: slice | NDArray[np.intp]) -> EarthState:
-    return EarthState(*(np.asarray(a)[rows] for a in state))
-
-
-def initial_state_from_truth(
-    truth: EarthState, row: int, spec: NavigatorSpec, t: float = 0.0
-) -> NavState:
-    """The initial state from truth row ``row`` plus the spec's initial errors.
-
-    Position error: NED metres in the true local level, applied in ECEF; velocity error: NED;
-    attitude error: offsets of roll, pitch and heading (Euler angles of ``C_B^N``).
-    """
-    tr = _truth(_rows(truth, slice(row, row + 1)))
-    r = tr.r_e[0] + dcm_ned_to_ecef(tr.lat[0], tr.lon[0]) @ spec.position_error_ned
-    lat, lon, alt = ecef_to_geodetic(r)
-    c = tr.c_b_n[0]
-    att = spec.attitude_error_rph
-    if np.any(att):
-        c = dcm_from_euler(*(np.asarray(euler_from_dcm(c)) + att))
-    return NavState(
-        float(t), float(lat), float(lon), float(alt),
-        tr.v_ned[0] + spec.velocity_error_ned, quat_from_dcm(c),
-    )  # fmt: skip
-
-
-def initial_state_from_scenario(initial: Initial, spec: NavigatorSpec) -> NavState:
-    """The initial state from a scenario's ``initial`` (the reference IMU at t0) plus the
-    spec's initial errors (see :func:`initial_state_from_truth`)."""
-    lat, lon = np.radians(initial.latitude_deg), np.radians(initial.longitude_deg)
-    alt = float(initial.altitude_m)
-    r = geodetic_to_ecef(lat, lon, alt) + dcm_ned_to_ecef(lat, lon) @ spec.position_error_ned
-    lat, lon, alt = ecef_to_geodetic(r)
-    rph = np.radians(np.asarray(initial.attitude_rph_deg, dtype=np.float64))
-    v = np.asarray(initial.velocity_ned_mps, dtype=np.float64) + spec.velocity_error_ned
-    c = dcm_from_euler(*(rph + spec.attitude_error_rph))
-    return NavState(0.0, float(lat), float(lon), float(alt), v, quat_from_dcm(c))
-
-
-# --------------------------------------------------------------------------------------------
-# Outputs
-# --------------------------------------------------------------------------------------------
-
-
-@dataclass
-class NavigatorOutputs:
-    """Fields of the navigator topics for consecutive output stamps (errors: None without
-    truth)."""
-
-    odom: OdometryFields
-    fix: NavSatFixFields
-    error_position: Vector3StampedFields | None = None
-    error_velocity: Vector3StampedFields | None = None
-    error_attitude: Vector3StampedFields | None = None
-
-    def __len__(self) -> int:
-        return len(self.odom)
-
-    def items(self) -> list[tuple[str, object]]:
-        """``(output key, fields)`` of the topics present (keys of :data:`OUTPUT_TOPICS`)."""
-        return [(k, getattr(self, k)) for k in OUTPUT_TOPICS if getattr(self, k) is not None]
-
-
-def _output_fields(
-    stamps: I64,
-    sol: NavSolution,
-    omega_eb_b: F64,
-    truth: _Truth | None,
-    frame_id: str,
-    earth_frame: str,
-) -> NavigatorOutputs:
-    r_e = geodetic_to_ecef(sol.lat, sol.lon, sol.alt)
-    c_n_e = dcm_ned_to_ecef(sol.lat, sol.lon)
-    v_e = np.einsum("nij,nj->ni", c_n_e, sol.v_ned)
-    c_b_n = dcm_from_quat(sol.q_b_n)
-    out = NavigatorOutputs(
-        odometry_fields_from_ecef(
-            stamps, r_e, v_e, c_n_e @ c_b_n, omega_eb_b, frame_id, earth_frame
-        ),  # fmt: skip
-        # an inertial-only position: no GNSS fix claimed (docs/interface.md §4)
-        navsatfix_fields_from_geodetic(
-            stamps, sol.lat, sol.lon, sol.alt, frame_id,
-            status=STATUS_NO_FIX, service=SERVICE_UNKNOWN,
-        ),  # fmt: skip
-    )
-    if truth is not None:
-        dr = position_error_ned(r_e, truth.r_e, truth.lat, truth.lon)
-        out.error_position = vector3_stamped_fields(stamps, dr, "ned")
-        out.error_velocity = vector3_stamped_fields(
-            stamps, velocity_error_ned(sol.v_ned, truth.v_ned), "ned"
-        )
-        out.error_attitude = vector3_stamped_fields(
-            stamps, attitude_error_young(c_b_n, truth.c_b_n), "young_uen"
-        )
-    return out
-
-
-# --------------------------------------------------------------------------------------------
-# A run over contiguous messages
-# --------------------------------------------------------------------------------------------
-
-
-class NavigatorRun:
-    """The navigator over one contiguous stretch of IMU messages (no gap).
-
-    Feed decoded IMU increments (:meth:`add_imu`) and truth states (:meth:`add_truth`) in any
-    interleaving; :meth:`outputs` returns the messages of every output that is complete (its
-    cycle integrated and, with a truth topic, its truth received).
-
-    Parameters
-    ----------
-    spec : NavigatorSpec
-        Resolved navigator section.
-    start_ns : int
-        Stamp of the initial state ``t_s``.
-    period_ns : int
-        IMU period T (ns); ``T_gyr = T``.
-    initial : NavState
-        State at ``t_s`` (with the initial errors already applied).
-    use_truth : bool
-        Compute errors (and wait for the truth of each output stamp).
-    initial_omega : array (3,), optional
-        Body rate relative to the Earth for the j = 0 output (truth's, if known).
-    earth_frame : str
-        Odometry ``header.frame_id``.
-    n : int, optional
-        N (default ``spec.n``).
-    """
-
-    def __init__(
-        self,
-        spec: NavigatorSpec,
-        start_ns: int,
-        period_ns: int,
-        initial: NavState,
-        use_truth: bool,
-        initial_omega: F64 | None = None,
-        earth_frame: str = "earth",
-        n: int | None = None,
-    ) -> None:
-        if period_ns <= 0:
-            raise StreamError(f"IMU period must be positive, got {period_ns} ns")
-        self.spec = spec
-        self.n = spec.n if n is None else int(n)
-        self.damped = spec.vertical_damping is not None
-        self.start_ns, self.period_ns = int(start_ns), int(period_ns)
-        self.nav_period_ns = self.n * self.period_ns
-        self.use_truth = use_truth
-        self.earth_frame = earth_frame
-        self.navigator = build_navigator(spec, initial, self.period_ns * 1e-9, self.n)
-        self.next_imu_ns = self.start_ns + self.period_ns
-        self._da: list[F64] = []
-        self._dv: list[F64] = []
-        self._buffered = 0
-        self._truth: dict[int, tuple[F64, ...]] = {}
-        self.truth_latest_ns: int | None = None  # latest truth stamp received (any stamp)
-        self.truth_lost: list[int] = []  # output stamps whose truth is lost, not yet reported
-        self._alt = float(initial.alt)  # altitude (m) of the last cycle integrated
-        w0 = np.zeros(3) if initial_omega is None else np.asarray(initial_omega, dtype=np.float64)
-        self._held: list[tuple[int, NavSolution, F64]] = [
-            (self.start_ns, _solution_rows(initial, self.n), w0[None])
-        ]
-        self.cycles = 0
-
-    # -- input -------------------------------------------------------------------------------
-
-    def add_imu(self, stamps_ns: I64, dalpha: F64, dv: F64) -> None:
-        """Append IMU increments (FRD) with stamps continuing the run exactly.
-
-        Raises
-        ------
-        StreamError
-            If the first stamp is not the expected next one, or the stamps are not spaced by T
-            (a gap or out-of-order data): nothing is integrated across it.
-        """
-        stamps = np.asarray(stamps_ns, dtype=np.int64)
-        if not stamps.size:
-            return
-        expected = self.next_imu_ns + self.period_ns * np.arange(stamps.size)
-        if not np.array_equal(stamps, expected):
-            bad = int(np.argmax(stamps != expected))
-            raise StreamError(
-                f"IMU stamp {int(stamps[bad])} ns where {int(expected[bad])} ns was expected "
-                f"(T = {self.period_ns} ns): "
-                + ("gap" if stamps[bad] > expected[bad] else "out of order or repeated")
-            )
-        self._da.append(np.asarray(dalpha, dtype=np.float64))
-        self._dv.append(np.asarray(dv, dtype=np.float64))
-        self._buffered += stamps.size
-        self.next_imu_ns = int(stamps[-1]) + self.period_ns
-
-    def add_truth(self, state: EarthState) -> None:
-        """Remember truth rows by stamp (those on the navigation grid are kept)."""
-        stamps = np.asarray(state.stamps_ns, dtype=np.int64)
-        if stamps.size:
-            latest = int(stamps.max())
-            if self.truth_latest_ns is None or latest > self.truth_latest_ns:
-                self.truth_latest_ns = latest
-        rel = stamps - self.start_ns
-        keep = np.flatnonzero((rel >= 0) & (rel % self.nav_period_ns == 0))
-        for i in keep:
-            self._truth[int(stamps[i])] = tuple(np.asarray(a)[i] for a in state[1:])
-
-    # -- output ------------------------------------------------------------------------------
-
-    def _truth_lost(self, stamp: int) -> bool:
-        """The truth of ``stamp`` did not arrive and a later one did: it is lost (truth comes in
-        stamp order)."""
-        return self.truth_latest_ns is not None and self.truth_latest_ns > stamp
-
-    def outputs(self) -> NavigatorOutputs | None:
-        """Integrate every complete cycle; return the outputs now complete (None if none).
-
-        With a truth topic an output waits for the truth of its stamp; if that truth is lost
-        (a later one arrived), the output is published without its error messages (the
-        navigator runs on from its own state; call again for the outputs after it).
-        """
-        self._integrate()
-        ready = []
-        lost = False
-        for item in self._held:
-            if self.use_truth and item[0] not in self._truth:
-                if ready or not self._truth_lost(item[0]):
-                    break
-                lost = True
-                self.truth_lost.append(item[0])
-                ready.append(item)
-                break
-            ready.append(item)
-        if not ready:
-            return None
-        self._held = self._held[len(ready) :]
-        stamps = np.array([s for s, _, _ in ready], dtype=np.int64)
-        sol = _concat([r[1] for r in ready])
-        omega = np.concatenate([r[2] for r in ready])
-        truth = None
-        if self.use_truth and not lost:
-            rows = [self._truth[int(s)] for s in stamps]
-            truth = _truth(EarthState(stamps, *(np.array([r[i] for r in rows]) for i in range(4))))
-        self._prune_truth()
-        return _output_fields(stamps, sol, omega, truth, self.spec.frame_id, self.earth_frame)
-
-    def _integrate(self) -> None:
-        n = self.n
-        cycles = self._buffered // n
-        if self.damped:
-            # h_aux of cycle k: truth altitude at its start stamp (must have arrived; if it is
-            # lost, the navigator's own altitude: no damping correction over that cycle).
-            have = 0
-            while have < cycles:
-                start = self._cycle_start(self.cycles + have)
-                if start not in self._truth and not self._truth_lost(start):
-                    break
-                have += 1
-            cycles = have
-        if not cycles:
-            return
-        da = np.concatenate(self._da) if len(self._da) > 1 else self._da[0]
-        dv = np.concatenate(self._dv) if len(self._dv) > 1 else self._dv[0]
-        used = cycles * n
-        h_aux = None
-        if self.damped:
-            starts = [self._cycle_start(self.cycles + k) for k in range(cycles)]
-            if all(s in self._truth for s in starts):
-                h_aux = ecef_to_geodetic(np.array([self._truth[s][0] for s in starts]))[2]
-            else:  # cycle by cycle: a lost truth altitude is the navigator's own
-                sol = None
-                for k, s in enumerate(starts):
-                    h = (ecef_to_geodetic(self._truth[s][0])[2] if s in self._truth
-                         else self._alt)  # fmt: skip
-                    part = self.navigator.run(
-                        da[k * n : (k + 1) * n], dv[k * n : (k + 1) * n], np.array([h])
-                    )
-                    self._alt = float(part.alt[-1])
-                    sol = part if sol is None else _concat([sol, part])
-                self._finish_cycles(sol, da, dv, cycles, used)
-                return
-        sol = self.navigator.run(da[:used], dv[:used], h_aux)
-        self._finish_cycles(sol, da, dv, cycles, used)
-
-    def _finish_cycles(self, sol: NavSolution, da: F64, dv: F64, cycles: int, used: int) -> None:
-        n = self.n
-        self._alt = float(sol.alt[-1])
-        self._da, self._dv = [da[used:]], [dv[used:]]
-        self._buffered -= used
-        # Mean body rate relative to the Earth over each cycle: ΣΔα/T_nav - C_E^B ω_ie.
-        t_nav = self.nav_period_ns * 1e-9
-        rate = da[:used].reshape(cycles, n, 3).sum(axis=1) / t_nav
-        c_b_e = dcm_ned_to_ecef(sol.lat, sol.lon) @ dcm_from_quat(sol.q_b_n)
-        omega = rate - np.einsum("nji,j->ni", c_b_e, OMEGA_IE_VEC)
-        for k in range(cycles):
-            stamp = self._cycle_start(self.cycles + k + 1)
-            self._held.append((stamp, _solution_rows(sol, n, k), omega[k : k + 1]))
-        self.cycles += cycles
-
-    def _prune_truth(self) -> None:
-        """Forget truth older than both the next held output and the next cycle start."""
-        oldest = self._cycle_start(self.cycles)
-        if self._held:
-            oldest = min(oldest, self._held[0][0])
-        for s in [s for s in self._truth if s < oldest]:
-            del self._truth[s]
-
-    def _cycle_start(self, k: int) -> int:
-        return self.start_ns + k * self.nav_period_ns
-
-
-def _solution_rows(sol: NavSolution | NavState, n: int, k: int | None = None) -> NavSolution:
-    """One output row as a NavSolution (from a state or row k of a solution)."""
-    if isinstance(sol, NavState):
-        return NavSolution(
-            np.array([sol.t]), np.array([sol.lat]), np.array([sol.lon]), np.array([sol.alt]),
-            np.asarray(sol.v_ned, dtype=np.float64)[None],
-            np.asarray(sol.q_b_n, dtype=np.float64)[None], n,
-        )  # fmt: skip
-    sl = slice(k, k + 1)
-    return NavSolution(
-        sol.t[sl], sol.lat[sl], sol.lon[sl], sol.alt[sl], sol.v_ned[sl], sol.q_b_n[sl], n
-    )
-
-
-def _concat(parts: list[NavSolution]) -> NavSolution:
-    return NavSolution(
-        *(np.concatenate([getattr(p, f) for p in parts]) for f in
-          ("t", "lat", "lon", "alt", "v_ned", "q_b_n")),
-        parts[0].n,
-    )  # fmt: skip
-
-
-# --------------------------------------------------------------------------------------------
-# The streaming stage
-# --------------------------------------------------------------------------------------------
-
-
-class _TruthStore:
-    """The latest ``keep`` truth rows by stamp (a repeated stamp: the last one received),
-    kept as a few arrays and sorted when a run is to start."""
-
-    def __init__(self, keep: int) -> None:
-        self.keep = keep
-        self._parts: list[EarthState] = []
-        self._rows = 0
-        self._sorted = True
-
-    def add(self, state: EarthState) -> None:
-        self._parts.append(state)
-        self._rows += len(state.stamps_ns)
-        self._sorted = False
-        if self._rows > 2 * self.keep:
-            self.sorted()
-
-    def sorted(self) -> EarthState | None:
-        """The rows kept, in stamp order (None if none)."""
-        if not self._parts:
-            return None
-        if not self._sorted:
-            parts = self._parts
-            cat = EarthState(*(np.concatenate([p[i] for p in parts]) for i in range(5)))
-            rev = np.asarray(cat.stamps_ns, dtype=np.int64)[::-1]
-            _, first = np.unique(rev, return_index=True)  # last occurrence of each stamp
-            rows = (rev.size - 1 - first)[-self.keep :]
-            self._parts = [_rows(cat, rows)]
-            self._rows = rows.size
-            self._sorted = True
-        return self._parts[0]
 
 
 @dataclass
@@ -539,7 +81,7 @@ class _Decoded:
     states: EarthState | None = None  # truth in the Earth frame (None: wrong frame)
 
 
-class NavigationStage:
+class NavigatorStage:
     """The streaming navigator: Imu and truth messages in, ``/navigator/*`` messages out.
 
     Input in arrival order and any chunking (:meth:`on_batch` raw payloads, :meth:`feed_fields`
@@ -589,9 +131,9 @@ class NavigationStage:
         nav_period_s: float = 0.0,
         end_ns: int | None = None,
         earth_frame: str = "earth",
-        info: Log = _quiet,
-        warn: Log = _quiet,
-        error: Log = _quiet,
+        info: Log = quiet,
+        warn: Log = quiet,
+        error: Log = quiet,
     ) -> None:
         if not spec.resolved:
             raise ValueError("the navigator spec must be resolved (resolve_navigator)")
@@ -611,7 +153,7 @@ class NavigationStage:
         self.period_ns: int | None = None
         self.first_imu: list[tuple[int, Any]] = []  # (stamp, fields) before T is known
         self.imu_buffer: list[tuple[int, F64, F64]] = []  # waiting for a run
-        self.truth = _TruthStore(TRUTH_KEEP)
+        self.truth = TruthStore(TRUTH_KEEP)
         self.run: NavigatorRun | None = None
         self.runs = 0
         self.published_outputs = 0
@@ -628,7 +170,7 @@ class NavigationStage:
     @classmethod
     def for_scenario(
         cls, scenario: Scenario, spec: NavigatorSpec | None = None, **kwargs: Any
-    ) -> NavigationStage:
+    ) -> NavigatorStage:
         """The stage of ``scenario``'s navigator (or of ``spec``, resolved), with its output
         topics, frames, initial state and start; ``kwargs`` as for the constructor."""
         spec = navigator_spec(scenario) if spec is None else spec
@@ -786,37 +328,32 @@ class NavigationStage:
         dropped truth a lost truth message (the navigator runs on from its own state)."""
         keep = np.ones(is_imu.size, dtype=bool)
         parts = []
-        for dec, flag, topic in ((imu, True, self.spec.imu_topic),
-                                 (truth, False, self.spec.truth_topic)):  # fmt: skip
+        for dec, flag in ((imu, True), (truth, False)):
             if dec is None or dec.fields is None:
                 parts.append(dec)
                 continue
-            bad = nonfinite_rows(dec.fields)
+            fields, bad = self._screen(dec.fields, flag)
             if bad is None:
-                parts.append(dec)
+                parts.append(dec if fields is dec.fields else self._decoded(fields))
                 continue
-            for a, b in stretches(bad):
-                self._nonfinite_event(topic, dec.stamps[a : b + 1].tolist(), flag)
             keep[np.flatnonzero(is_imu == flag)[bad]] = False
-            fields = without_rows(dec.fields, bad)
             parts.append(None if fields is None else self._decoded(fields))
         if keep.all():
-            return is_imu, imu, truth
+            return is_imu, parts[0], parts[1]
         return is_imu[keep], parts[0], parts[1]
 
-    def _nonfinite_event(self, topic: str, stamps: Sequence[int], imu: bool) -> None:
-        first, last, n = int(stamps[0]), int(stamps[-1]), len(stamps)
+    def _screen(self, fields: Any, imu: bool) -> tuple[Any, NDArray[np.bool_] | None]:
+        """:func:`~strapdown_ros.stages.intake.screen` of Imu (``imu``) or truth messages: a
+        dropped Imu is a lost one (the run ends at its last complete cycle), a dropped truth a
+        lost truth (the navigator runs on from its own state)."""
         if imu:
-            self.events.dropped(topic, stamps)
-        span = format_stamp(first) + (f"..{format_stamp(last)} ({n} messages)" if n > 1 else "")
-        action = ("treated as lost: the run ends at its last complete cycle, a new one starts "
-                  "from the truth" if imu else
-                  "treated as lost: the navigator runs on from its own state (no error "
-                  "messages at that stamp)")  # fmt: skip
-        self.events(
-            "non-finite", f"{topic}: stamp {span}: NaN or infinity in the message; {action}",
-            error=True,
-        )
+            topic = self.spec.imu_topic
+            return screen(fields, topic, self.events, "treated as lost: the run ends at its "
+                          "last complete cycle, a new one starts from the truth",
+                          lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
+        return screen(fields, self.spec.truth_topic, self.events, "treated as lost: the "
+                      "navigator runs on from its own state (no error messages at that "
+                      "stamp)")  # fmt: skip
 
     def _add_block(
         self,
@@ -833,7 +370,7 @@ class NavigationStage:
         t0, t1 = pos - r0, end - r1
         if t1 > t0:
             assert truth is not None and truth.states is not None
-            self._add_truth(_rows(truth.states, slice(t0, t1)))
+            self._add_truth(state_rows(truth.states, slice(t0, t1)))
         if r1 > r0:
             assert imu is not None and self.run is not None and self.period_ns is not None
             inc = imu_increments(imu.fields.rows(r0, r1), self.period_ns)
@@ -854,28 +391,21 @@ class NavigationStage:
             if imu.fields is not None:
                 return self._on_imu_fields(imu.fields.rows(row, row + 1))
             assert imu.payloads is not None
-            try:
-                fields = cdr.deserialize(cdr.IMU, [imu.payloads[row]])
-            except cdr.CdrError as exc:
-                self.events("malformed", f"{self.spec.imu_topic}: rejected a malformed Imu: "
-                            f"{exc}", error=True)  # fmt: skip
+            fields = decode_one(cdr.IMU, imu.payloads[row], self.spec.imu_topic, self.events)
+            if fields is None:
                 return []
-            if nonfinite_rows(fields) is not None:
-                self._nonfinite_event(self.spec.imu_topic, [int(fields.stamps_ns[0])], True)
-                return []
-            return self._on_imu_fields(fields)
+            fields, _ = self._screen(fields, True)
+            return [] if fields is None else self._on_imu_fields(fields)
         row = k - int(imu_before[k])
         assert truth is not None
         if truth.fields is None:
             assert truth.payloads is not None
-            try:
-                fields = cdr.deserialize(cdr.ODOMETRY, [truth.payloads[row]])
-            except cdr.CdrError as exc:
-                self.events("malformed", f"{self.spec.truth_topic}: rejected a malformed "
-                            f"Odometry: {exc}", error=True)  # fmt: skip
+            fields = decode_one(cdr.ODOMETRY, truth.payloads[row], self.spec.truth_topic,
+                                self.events)  # fmt: skip
+            if fields is None:
                 return []
-            if nonfinite_rows(fields) is not None:
-                self._nonfinite_event(self.spec.truth_topic, [int(fields.stamps_ns[0])], False)
+            fields, _ = self._screen(fields, False)
+            if fields is None:
                 return []
             one = self._decoded(fields)
             if one.states is None:
@@ -886,7 +416,7 @@ class NavigationStage:
         if truth.states is None:
             self._wrong_frame(truth.fields.frame_id)
             return []
-        self._add_truth(_rows(truth.states, slice(row, row + 1)))
+        self._add_truth(state_rows(truth.states, slice(row, row + 1)))
         return []
 
     def _imu_frame_changed(self, frame_id: str, stamp: int) -> bool:
@@ -986,13 +516,11 @@ class NavigationStage:
                 return
             except StreamError as exc:
                 expected = self.run.next_imu_ns
-                restart = stamp < expected - MAX_LATE_CYCLES * self.period_ns
-                if stamp < expected and not restart:
-                    what = "duplicate stamp" if stamp == expected - self.period_ns else (
-                        "out-of-order stamp")  # fmt: skip
-                    self.events(what, f"{self.spec.imu_topic}: {exc}; dropped")
+                verdict = stamp_verdict(stamp, expected - self.period_ns, self.period_ns)
+                if verdict in ("duplicate", "out-of-order"):
+                    self.events(f"{verdict} stamp", f"{self.spec.imu_topic}: {exc}; dropped")
                     return
-                if restart:
+                if verdict == "restart":
                     self.events(
                         "restart",
                         f"{self.spec.imu_topic}: stamp {format_stamp(stamp)} jumps back from "
@@ -1014,7 +542,7 @@ class NavigationStage:
                 self._flush_pending = self._outputs_of(self.run)
                 self.run = None
         if self.imu_buffer and stamp <= self.imu_buffer[-1][0]:
-            if stamp < self.imu_buffer[-1][0] - MAX_LATE_CYCLES * self.period_ns:
+            if stamp_verdict(stamp, self.imu_buffer[-1][0], self.period_ns) == "restart":
                 self.imu_buffer.clear()  # the source restarted before a run could start
             else:
                 self.events(
@@ -1076,7 +604,7 @@ class NavigationStage:
         if truth is not None:
             after = np.flatnonzero(np.asarray(truth.stamps_ns) >= start_ns)
             if after.size:
-                self.run.add_truth(_rows(truth, after))
+                self.run.add_truth(state_rows(truth, after))
         buf, self.imu_buffer = self.imu_buffer, []
         if buf:
             self.run.add_imu(
@@ -1193,7 +721,7 @@ def navigate_messages(
     ``strapdown-sim replay`` to check a live replay.
     """
     topics = dict(output_topics or {k: k for k in OUTPUT_TOPICS})
-    stage = NavigationStage(
+    stage = NavigatorStage(
         spec, topics, initial=initial, start_ns=start_ns, earth_frame=earth_frame
     )
     n_truth = 0 if truth is None else len(truth.stamps_ns)
@@ -1207,15 +735,3 @@ def navigate_messages(
     for topic, _, payload in stage.feed_fields(imu, truth, order >= n_truth):
         out.setdefault(by_topic[topic], []).append(bytes(payload))
     return out
-
-
-def input_end_ns(scenario: Scenario, imu_topic: str) -> int | None:
-    """Last IMU stamp of the scenario's stream on ``imu_topic`` (None if unknown)."""
-    from strapdown_ros.stages.reference import build_trajectory, output_cycles
-
-    key = next((k for k, v in scenario.recording.topics.items() if v == imu_topic), None)
-    if key not in INPUT_STREAMS:
-        return None
-    cycles = output_cycles(scenario, build_trajectory(scenario))
-    last = cycles if key == "reference_imu" else cycles - 1 - (cycles - 1) % 2
-    return scenario.start_time_ns + last * scenario.period_ns

@@ -24,7 +24,7 @@ from strapdown_ros.campaign.vary import Vary
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.scenario import apply_overrides, parse_scenario, read_document
 
-__all__ = ["CampaignPlan", "RunSpec"]
+__all__ = ["Campaign", "RunSpec"]
 
 #: Top-level sections whose variation between runs leaves the reference stream unchanged.
 PER_RUN_SECTIONS = ("imu_errors", "navigator", "aiding")
@@ -57,7 +57,7 @@ def _seed_keys(node: Any, path: str = "") -> list[str]:
 
 
 @dataclass
-class CampaignPlan:
+class Campaign:
     """A campaign: the base scenario, the varied keys and the run specification of each run.
 
     Parameters

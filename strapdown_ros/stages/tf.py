@@ -1,6 +1,6 @@
 """TF, map-frame odometry and increment topics derived from a stage's messages.
 
-:class:`FramesStage` turns the serialized output of the other stages into the messages ROS
+:class:`TFStage` turns the serialized output of the other stages into the messages ROS
 tools expect (docs/interface.md, "Frames and TF"): ``/tf_static`` (``earth → map``,
 ``base_link → reference_imu``, ``base_link → variation_imu`` when its offsets are constant),
 ``/tf`` (``map → base_link`` from the reference truth, ``base_link → variation_imu`` from the
@@ -21,8 +21,7 @@ from rosbags.interfaces import QosDurability
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
 from strapdown_ros.bag.writer import DEFAULT_QOS
-from strapdown_ros.config import Scenario
-from strapdown_ros.config.tf import tf_spec
+from strapdown_ros.config import Scenario, tf_spec
 from strapdown_ros.core.frames import Datum, sensor_in_body
 from strapdown_ros.core.variation import OffsetArrays
 from strapdown_ros.messages import (
@@ -34,6 +33,7 @@ from strapdown_ros.messages import (
     map_odometry_fields,
     tf_message_fields,
 )
+from strapdown_ros.plan.model import Plan, TopicPlan
 
 __all__ = [
     "DERIVED_TOPICS",
@@ -42,11 +42,11 @@ __all__ = [
     "ODOM_KEYS",
     "STATIC_QOS",
     "TF_TOPICS",
-    "FramesStage",
-    "derived_counts",
+    "TFStage",
+    "derived_topic_plans",
     "derived_topics",
     "node_derived_topics",
-    "scenario_datum",
+    "plan_datum",
     "static_topic",
 ]
 
@@ -87,19 +87,18 @@ def _frame(scenario: Scenario, key: str) -> str:
     return frames[key] if key in frames else EXTRA_FRAMES[key]
 
 
-def scenario_datum(scenario: Scenario) -> Datum:
+def plan_datum(plan: Plan) -> Datum:
     """The ``map`` datum: ``tf.datum``, else the initial position (``initial``, else the
     trajectory's position at t0)."""
-    spec = tf_spec(scenario).datum
+    scenario = plan.scenario
+    spec = plan.tf.datum
     if spec is not None:
         lat, lon, alt = spec.latitude_deg, spec.longitude_deg, spec.altitude_m
     elif scenario.initial is not None:
         ini = scenario.initial
         lat, lon, alt = ini.latitude_deg, ini.longitude_deg, ini.altitude_m
     else:
-        from strapdown_ros.stages.reference import build_trajectory
-
-        trajectory = build_trajectory(scenario)
+        trajectory = plan.trajectory
         if trajectory is None:  # kind increments always has `initial`
             raise ValueError("the scenario has no initial position for the map datum")
         truth = trajectory.local_truth(np.zeros(1))
@@ -112,7 +111,7 @@ def _source_topics(scenario: Scenario, keys: Iterable[str]) -> dict[str, str]:
 
 
 def derived_topics(scenario: Scenario, produced: Mapping[str, str]) -> dict[str, str]:
-    """The topics (name → message type) :class:`FramesStage` adds to the scenario's
+    """The topics (name → message type) :class:`TFStage` adds to the scenario's
     ``produced`` topics (``topics.produced_topics``), in the order ``generate`` creates them:
     ``/tf_static``, ``/tf``, then each source topic's map odometry / increments."""
     spec = tf_spec(scenario)
@@ -137,40 +136,55 @@ def _every(count: int, ratio: int) -> int:
     return 0 if count <= 0 else (count - 1) // ratio + 1
 
 
-def derived_counts(
-    scenario: Scenario, counts: Mapping[str, int], *, variation_static: bool = False
-) -> dict[str, int]:
-    """Message count of each derived topic from the counts of the source topics (by
-    ``recording.topics`` key, e.g. ``{"reference_odom": 120001, ...}``; the keys a scenario
-    does not produce are absent). ``variation_static``: ``base_link → variation_imu`` goes to
-    ``/tf_static`` (constant offsets) instead of ``/tf``."""
-    spec = tf_spec(scenario)
-    increments = bool(getattr(scenario.recording, "increments", False))
-    out: dict[str, int] = {}
+def derived_topic_plans(plan: Plan, upstream: Mapping[str, TopicPlan]) -> list[TopicPlan]:
+    """The topics :class:`TFStage` derives from the ``upstream`` topics of a plan, in the
+    order ``generate`` creates them, with their counts and stamps: ``/tf_static`` (one message
+    at t0), ``/tf`` (the reference poses, the variation's unless static, the navigator's, each
+    at its ``tf`` rate), the map-frame twin of each Odometry topic and the increments of each
+    Imu topic (those of their source)."""
+    scenario = plan.scenario
+    spec = plan.tf
+    types = derived_topics(scenario, {t: p.msgtype for t, p in upstream.items()})
+    by_key = {p.key: p for p in upstream.values() if p.key is not None}
+    out: list[TopicPlan] = []
     if spec.enabled:
         body = 1
         if spec.body_rate_hz is not None:
-            body = round(1e9 / spec.body_rate_hz) // scenario.period_ns
-        n = _every(counts.get("reference_odom", 0), body)
-        if not variation_static:
-            n += _every(counts.get("variation_odom", 0), body)
-        nav = counts.get("navigator_odom", 0)
+            body = round(1e9 / spec.body_rate_hz) // plan.period_ns
+        n = _every(_count(by_key, "reference_odom"), body)
+        if not plan.variation_static:
+            n += _every(_count(by_key, "variation_odom"), body)
+        nav = _count(by_key, "navigator_odom")
         if nav:
             ratio = 1
             if spec.navigator_rate_hz is not None:
-                n = int(getattr(scenario.navigator, "n", 1))
-                ratio = round(1e9 / spec.navigator_rate_hz) // (scenario.period_ns * n)
+                steps = int(getattr(scenario.navigator, "n", 1))
+                ratio = round(1e9 / spec.navigator_rate_hz) // (plan.period_ns * steps)
             n += _every(nav, ratio)
-        out[_topic(scenario, "tf_static")] = 1
-        out[_topic(scenario, "tf")] = n
-    for key in ODOM_KEYS:
-        if key in counts and spec.map_odometry:
-            out[_topic(scenario, f"{key}_map")] = counts[key]
-    for key in IMU_KEYS:
-        if key in counts and increments:
-            out[_topic(scenario, f"{key}_dv")] = counts[key]
-            out[_topic(scenario, f"{key}_dq")] = counts[key]
-    return out
+        static = _topic(scenario, "tf_static")
+        out.append(TopicPlan(static, types[static], 1, "tf", "tf_static", plan.start_ns,
+                             plan.start_ns))  # fmt: skip
+        tf = _topic(scenario, "tf")
+        out.append(TopicPlan(tf, types[tf], n, "tf", "tf", plan.start_ns))
+    increments = bool(scenario.recording.increments)
+    for key, source, suffixes in (
+        *((k, k, ("map",)) for k in ODOM_KEYS if spec.map_odometry),
+        *((k, k, ("dv", "dq")) for k in IMU_KEYS if increments),
+    ):
+        src = by_key.get(source)
+        if src is None:
+            continue
+        for suffix in suffixes:
+            topic = _topic(scenario, f"{key}_{suffix}")
+            out.append(TopicPlan(topic, types[topic], src.count, "tf", f"{key}_{suffix}",
+                                 src.first_ns, src.last_ns))  # fmt: skip
+    order = list(types)
+    return sorted(out, key=lambda p: order.index(p.topic))
+
+
+def _count(by_key: Mapping[str, TopicPlan], key: str) -> int:
+    p = by_key.get(key)
+    return 0 if p is None else p.count
 
 
 @dataclass(frozen=True)
@@ -184,19 +198,16 @@ class _Settings:
     increments: bool
 
 
-class FramesStage:
+class TFStage:
     """Derived TF / map-frame / increment batches of a scenario's message batches.
 
     Parameters
     ----------
-    scenario : Scenario
+    plan : Plan
+        The scenario's plan (TF settings, datum, cycles, whether the variation is static).
     offsets : OffsetArrays or None
         The variation's offsets on the output cycle grid (FRD, as the variation used them);
-        None: computed from the scenario when a variation topic is fed (``cycles`` needed).
-    cycles : int or None
-        Output cycles of the run (for the offsets).
-    datum : Datum or None
-        Default :func:`scenario_datum`.
+        None: computed from the scenario when a variation topic is fed.
     variation_tf : bool
         Pair reference and variation truth for ``base_link → variation_imu`` (``generate``,
         the variation node); False where no variation Odometry is fed (the other nodes), so
@@ -205,20 +216,18 @@ class FramesStage:
 
     def __init__(
         self,
-        scenario: Scenario,
+        plan: Plan,
         *,
         offsets: OffsetArrays | None = None,
-        cycles: int | None = None,
-        datum: Datum | None = None,
         variation_tf: bool = True,
     ) -> None:
-        spec = tf_spec(scenario)
+        scenario = plan.scenario
+        spec = plan.tf
         self.variation_tf = variation_tf
         self.scenario = scenario
-        self.datum = datum if datum is not None else scenario_datum(scenario)
+        self.datum = plan_datum(plan)
         nav_period = None
-        if scenario.navigator is not None:  # the section as written: N (no topic resolution,
-            # which a node's renamed topics would fail)
+        if scenario.navigator is not None:  # the section as written: N
             nav_period = scenario.period_ns * int(getattr(scenario.navigator, "n", 1))
             if spec.navigator_rate_hz is not None:
                 nav_period = int(round(1e9 / spec.navigator_rate_hz))
@@ -232,15 +241,15 @@ class FramesStage:
             navigator_period_ns=nav_period,
             tf=spec.enabled,
             map_odometry=spec.map_odometry,
-            increments=bool(getattr(scenario.recording, "increments", False)),
+            increments=bool(scenario.recording.increments),
         )
         self.frames = {k: _frame(scenario, k) for k in ("earth", "map", "base_link")}
         self.frames["reference_imu"] = _frame(scenario, "reference_imu")
         self.frames["variation_imu"] = _frame(scenario, "variation_imu")
         self._offsets = offsets
-        self._cycles = cycles
+        self._cycles = plan.cycles
+        self._variation_static = plan.variation_static
         self._static_variation: tuple[np.ndarray, np.ndarray] | None = None
-        self._variation_checked = False
         # reference truth poses waiting for the variation's (stamps, ECEF positions, quaternions)
         self._ref_t = np.zeros(0, dtype=np.int64)
         self._ref_p = np.zeros((0, 3))
@@ -273,25 +282,21 @@ class FramesStage:
         return self._offsets
 
     def variation_is_static(self) -> bool:
-        """Whether ``base_link → variation_imu`` is constant over the run (then in /tf_static)."""
-        if self.scenario.variation is None:
-            return False
-        if not self._variation_checked:
-            self._variation_checked = True
-            if self._offsets is None and self._cycles is None:
-                return False
+        """Whether ``base_link → variation_imu`` is constant over the run (then in /tf_static;
+        :func:`strapdown_ros.plan.variation_is_static`)."""
+        if self._variation_static and self._static_variation is None:
             o = self._variation_offsets(0)
-            const = all(
-                np.array_equal(a, np.broadcast_to(a[:1], a.shape))
-                for a in (o.lever_arm, o.displacement, o.c_bvar_bref)
+            self._static_variation = sensor_in_body(
+                o.lever_arm[:1], o.displacement[:1], o.c_bvar_bref[:1]
             )
-            if const:
-                self._static_variation = sensor_in_body(
-                    o.lever_arm[:1], o.displacement[:1], o.c_bvar_bref[:1]
-                )
-        return self._static_variation is not None
+        return self._variation_static
 
     # -- batches ---------------------------------------------------------------------------
+
+    def leading_batches(self) -> list[Batch]:
+        """What ``generate`` writes before everything else: :meth:`static_batch`."""
+        static = self.static_batch()
+        return [] if static is None else [static]
 
     def static_batch(self) -> Batch | None:
         """``/tf_static`` (one message at the start stamp t0), None when TF is off."""
@@ -484,8 +489,8 @@ class FramesStage:
         ]
 
 
-class FramedSolver:
-    """A node's solver whose outputs come with their derived messages (:class:`FramesStage`).
+class SolverWithTF:
+    """A node's solver whose outputs come with their derived messages (:class:`TFStage`).
 
     ``on_batch(items)`` returns the solver's serialized outputs followed by the derived
     messages of those outputs whose topic is in ``topics`` (the ones the node publishes: TF is
@@ -495,7 +500,7 @@ class FramedSolver:
     def __init__(
         self,
         solver: object,
-        frames: FramesStage,
+        frames: TFStage,
         topics: Iterable[str],
         reference_input: object | None = None,
     ) -> None:
@@ -503,7 +508,7 @@ class FramedSolver:
         self.frames = frames
         self.topics = set(topics)
         #: the ``kind`` of the node's input items that are reference Odometry payloads (the
-        #: variation node's), fed to :meth:`FramesStage.observe_reference_payloads`
+        #: variation node's), fed to :meth:`TFStage.observe_reference_payloads`
         self.reference_input = reference_input
 
     def on_batch(self, items: list) -> list[tuple[str, int, bytes]]:
@@ -527,20 +532,22 @@ def static_topic(scenario: Scenario) -> str | None:
 
 
 def node_derived_topics(
-    frames: FramesStage, outputs: Iterable[str], *, static: bool = False
+    plan: Plan, outputs: Iterable[str], *, static: bool = False
 ) -> dict[str, str]:
     """The derived topics (name → type) a node publishes beside its ``outputs``: ``/tf_static``
     only with ``static`` (``trajectory_node``), ``/tf`` when an output is a TF source
     (reference or navigator Odometry, variation Odometry with moving offsets), the map-frame
     odometry and increments of its outputs."""
+    scenario = plan.scenario
     outputs = list(outputs)
-    topics = dict(derived_topics(frames.scenario, dict.fromkeys(outputs, "")))
-    sources = {frames.odom_topics.get(t) for t in outputs}
+    topics = dict(derived_topics(scenario, dict.fromkeys(outputs, "")))
+    odom = _source_topics(scenario, ODOM_KEYS)
+    sources = {odom.get(t) for t in outputs}
     tf_source = bool(sources & {"reference_odom", "navigator_odom"}) or (
-        "variation_odom" in sources and not frames.variation_is_static()
+        "variation_odom" in sources and not plan.variation_static
     )
     if not static:
-        topics.pop(frames.tf_static_topic, None)
+        topics.pop(_topic(scenario, "tf_static"), None)
     if not tf_source:
-        topics.pop(frames.tf_topic, None)
+        topics.pop(_topic(scenario, "tf"), None)
     return topics

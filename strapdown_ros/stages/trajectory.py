@@ -21,103 +21,36 @@ from collections import deque
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
 from strapdown_ros.config import Scenario, ScenarioError
-from strapdown_ros.config.trajectory import (
-    IncrementsTrajectorySpec,
-    SamplesTrajectorySpec,
-    core_initial,
-)
+from strapdown_ros.config.trajectory import IncrementsTrajectorySpec, core_initial
 from strapdown_ros.core.gravity import gravitation
 from strapdown_ros.core.method2 import method2, pair_displacement
 from strapdown_ros.core.stream import Stream
-from strapdown_ros.core.trajectory.base import Trajectory, TrajectoryError, local_to_e0
+from strapdown_ros.core.trajectory.base import TrajectoryError, local_to_e0
 from strapdown_ros.messages import stream_from_messages
+from strapdown_ros.plan.model import Plan
+from strapdown_ros.plan.resolve import resolve_plan
 
 __all__ = [
-    "build_trajectory",
+    "as_plan",
     "decimate",
     "concatenate_streams",
     "generate_reference",
     "generate_reference_chunks",
     "slice_stream",
-    "natural_duration",
-    "output_cycles",
     "smooth_displacement",
 ]
 
 
-def build_trajectory(scenario: Scenario) -> Trajectory | None:
-    """The continuous trajectory model of the scenario (``None`` for kind ``increments``).
-
-    Raises
-    ------
-    ScenarioError
-        For a trajectory found impossible while building it (e.g.
-        ``trajectory.segments[2].accel_mps2`` when the speed would become negative), samples
-        that cannot be read or fitted (``trajectory.file``, ``trajectory.knots``, ...).
-    """
-    spec = scenario.trajectory
-    if isinstance(spec, SamplesTrajectorySpec):
-        return _build_samples(spec, scenario.base_dir)
-    if isinstance(spec, IncrementsTrajectorySpec):
-        return None
-    assert scenario.initial is not None  # the model requires it for these kinds
-    return spec.build(scenario.initial)
-
-
-def _build_samples(spec: SamplesTrajectorySpec, base_dir: Path) -> Trajectory:
-    """Read the samples (CSV file or a bag's Odometry topic) and fit them."""
-    from strapdown_ros.core.trajectory.samples import SamplesTrajectory
-    from strapdown_ros.inputs.samples import (
-        SamplesInputError,
-        load_samples_csv,
-        odometry_samples,
-    )
-
-    source = Path(spec.file if spec.file is not None else spec.bag)  # type: ignore[arg-type]
-    if not source.is_absolute():
-        source = base_dir / source
-    try:
-        if spec.file is not None:
-            samples = load_samples_csv(source, columns=spec.columns, rate_frame=spec.rate_frame)
-        else:
-            samples = odometry_samples(source, spec.odometry_topic)
-    except SamplesInputError as exc:
-        raise ScenarioError(f"trajectory.{exc.key}", exc.problem) from None
-    try:
-        return SamplesTrajectory(samples, spec.fit_options())
-    except TrajectoryError as exc:
-        key, prefix = spec.key_of(exc.where)
-        raise ScenarioError(key, prefix + exc.problem) from None
-    except ValueError as exc:  # samples the fit cannot use
-        raise ScenarioError(spec.source_key, f"{source}: {exc}") from None
-
-
-def natural_duration(scenario: Scenario, trajectory: Trajectory | None) -> float:
-    """Length (s) of the trajectory as described, before ``duration_s`` truncates it."""
-    if trajectory is not None:
-        return float(trajectory.duration)
-    return scenario.trajectory.natural_duration  # type: ignore[union-attr]
-
-
-def output_cycles(scenario: Scenario, trajectory: Trajectory | None) -> int:
-    natural = natural_duration(scenario, trajectory)
-    duration = scenario.duration_s if scenario.duration_s is not None else natural
-    if duration > natural + 1e-9:
-        raise ScenarioError(
-            "duration_s",
-            f"{duration} s exceeds the trajectory's length of {natural} s",
-        )
-    cycles = int(np.floor(duration * scenario.rate_hz + 1e-9))
-    if cycles < 1:
-        raise ScenarioError("duration_s", f"{duration} s is shorter than one cycle")
-    return cycles
+def as_plan(source: Plan | Scenario) -> Plan:
+    """``source`` itself, or the plan of a scenario (for scripts and tests that start from a
+    scenario; ``generate`` and the nodes resolve theirs once and pass it)."""
+    return source if isinstance(source, Plan) else resolve_plan(source)
 
 
 #: Largest disagreement (m) between a model's position differences and Simpson's rule on its
@@ -186,8 +119,7 @@ def _chunk_bounds(total: int, chunk_cycles: int, first_cycles: int) -> Iterator[
 
 
 def generate_reference_chunks(
-    scenario: Scenario,
-    trajectory: Trajectory | None = None,
+    source: Plan | Scenario,
     chunk_cycles: int = CHUNK_CYCLES,
     first_cycles: int = FIRST_CHUNK_CYCLES,
     workers: int = 1,
@@ -201,11 +133,11 @@ def generate_reference_chunks(
         raise ValueError(
             f"chunk sizes must be even and >= 2, got {chunk_cycles} and {first_cycles}"
         )
+    plan = as_plan(source)
+    scenario = plan.scenario
     spec = scenario.trajectory
-    increments = isinstance(spec, IncrementsTrajectorySpec)
-    if trajectory is None and not increments:
-        trajectory = build_trajectory(scenario)
-    out_cycles = output_cycles(scenario, trajectory)
+    trajectory = plan.trajectory
+    out_cycles = plan.cycles
     oversample = scenario.oversample
     gen_period_ns = scenario.generation_period_ns
     model = scenario.gravity_model
@@ -306,20 +238,11 @@ def concatenate_streams(pieces: Iterable[Stream]) -> Stream:
     )
 
 
-def generate_reference(
-    scenario: Scenario, trajectory: Trajectory | None = None, workers: int | None = None
-) -> Stream:
-    """The reference stream of ``scenario`` at its output rate (interface.md §2-§3), in one piece.
-
-    Parameters
-    ----------
-    scenario : Scenario
-        Validated scenario.
-    trajectory : Trajectory, optional
-        Pre-built model (from :func:`build_trajectory`); built here if omitted.
-    """
+def generate_reference(source: Plan | Scenario, workers: int | None = None) -> Stream:
+    """The reference stream of a plan (or scenario) at its output rate (docs/interface.md
+    §2-§3), in one piece; chunks on ``workers`` threads (default: up to 2)."""
     workers = min(2, os.cpu_count() or 1) if workers is None else workers
-    return concatenate_streams(generate_reference_chunks(scenario, trajectory, workers=workers))
+    return concatenate_streams(generate_reference_chunks(source, workers=workers))
 
 
 def _truncate(stream: Stream, cycles: int) -> Stream:
@@ -353,16 +276,16 @@ def reference_batches(scenario: Scenario, stream: Stream) -> list[Batch]:
     return batches
 
 
-def reference_batch_chunks(
-    scenario: Scenario, trajectory: Trajectory | None = None
-) -> Iterator[tuple[Stream, list[Batch]]]:
+def reference_batch_chunks(source: Plan | Scenario) -> Iterator[tuple[Stream, list[Batch]]]:
     """Pieces of the reference stream with their serialized batches, in stamp order.
 
     Consecutive pieces share one truth sample; it is published (and written) once, with the
     earlier piece. Concatenating the batches of all pieces gives exactly
-    ``reference_batches(scenario, generate_reference(scenario))``.
+    ``reference_batches(scenario, generate_reference(plan))``.
     """
-    for k, piece in enumerate(generate_reference_chunks(scenario, trajectory)):
+    plan = as_plan(source)
+    scenario = plan.scenario
+    for k, piece in enumerate(generate_reference_chunks(plan)):
         batches = reference_batches(scenario, piece)
         if k:
             batches = [_drop_up_to(b, piece.t0_ns) for b in batches]

@@ -1,0 +1,37 @@
+"""The bag metadata (``custom_data``) that says how a plan's streams were made."""
+
+from __future__ import annotations
+
+from strapdown_ros.plan.model import Plan
+
+__all__ = ["bag_custom_data"]
+
+
+def bag_custom_data(plan: Plan) -> dict[str, str]:
+    """The bag metadata ``custom_data`` describing how a scenario's streams were made.
+
+    ``generator``, ``scenario`` (name), ``rate_hz``, the gravitation model and, for the sections
+    the scenario has, ``variation.method`` / ``variation.gravity``, ``navigator.algorithm`` /
+    ``navigator.mode`` and ``imu_errors.preset`` / ``imu_errors.seed``; ``strapdown-sim
+    report`` names the variation method from it. Written by ``generate`` and ``bag_recorder``.
+    """
+    scenario = plan.scenario
+    data = {
+        "generator": "strapdown_ros",
+        "scenario": scenario.name,
+        "rate_hz": f"{scenario.rate_hz:g}",
+        "gravity_model": str(scenario.gravity_model),
+    }
+    if scenario.variation is not None:
+        spec = scenario.variation
+        data["variation.method"], data["variation.gravity"] = str(spec.method), spec.gravity
+    nav = plan.navigator
+    if nav is not None:
+        data["navigator.algorithm"], data["navigator.mode"] = nav.algorithm, str(nav.mode)
+    if scenario.imu_errors is not None:
+        for key in ("preset", "seed"):  # the ones the file gives
+            if key in scenario.imu_errors.model_fields_set:
+                data[f"imu_errors.{key}"] = str(getattr(scenario.imu_errors, key))
+    if scenario.aiding is not None:  # the section as resolved (presets filled in), for the report
+        data["aiding"] = scenario.aiding.model_dump_json(exclude_none=True)
+    return data
