@@ -1,14 +1,15 @@
 """What ``launch/pipeline.launch.py`` starts, decided in plain Python (no ``launch`` import).
 
-The launch file's ``OpaqueFunction`` calls :func:`plan_launch` with its arguments (scenario,
-out, force, duration_s, rate_factor) and turns the :class:`LaunchPlan` into ``Node`` actions and
-one exit handler per node. Everything that can be wrong is decided here, before any process
-starts, so it is testable without ``launch``/``launch_ros`` (which are not on PyPI):
+The launch file's ``OpaqueFunction`` calls :func:`plan_launch_with` (:func:`plan_launch` in the
+nodes' Python, below) with its arguments (scenario, out, force, duration_s, rate_factor) and
+turns the :class:`LaunchPlan` into ``Node`` actions and one exit handler per node. Everything
+that can be wrong is decided here, before any process starts, so it is testable without
+``launch``/``launch_ros`` (which are not on PyPI):
 
 * the nodes the scenario needs and, for each, ``subscribers_per_topic`` (the start-up
   handshake: every output topic waits for the recorder plus the downstream nodes) computed from
-  the scenario, as ``strapdown-sim run`` computes them (:func:`pipeline_counts`; any scenario,
-  not only the one ``config/params.yaml`` was written for);
+  the scenario's live graph, as ``strapdown-sim run`` computes them (:func:`pipeline_counts`;
+  any scenario, not only the one ``config/params.yaml`` was written for);
 * the output directory: absolute; by default a new time-stamped one in the current directory
   (``strapdown_run_YYYY_MM_DD-HH_MM_SS``, like ``ros2 bag record``'s ``rosbag2_...``), never an
   existing one; an existing ``out:=`` is refused unless ``force:=true`` (:class:`LaunchError`,
@@ -149,64 +150,21 @@ def parse_float(name: str, text: str) -> float:
 
 
 def pipeline_counts(scenario: Any) -> dict[str, dict[str, int]]:
-    """Node → {output topic: subscriptions to wait for}, for the nodes the scenario needs.
+    """Node → {topic it publishes: subscriptions to wait for}, for the nodes the scenario needs,
+    in chain order (the source, trajectory_node, first).
 
-    The same counts as ``strapdown-sim run`` (:func:`strapdown_ros.pipeline.run_pipeline`):
-    every produced topic has the recorder, plus the pipeline's nodes on their inputs; each node
-    also waits on the TF / map-frame topics it derives. This is the one place the launch
-    computes them (to be taken from the pipeline's plan once it has one);
+    Taken from the live graph of the scenario's plan, as ``strapdown-sim run`` takes them
+    (:func:`strapdown_ros.plan.chain.live_graph`): every produced topic has the recorder, plus
+    the nodes reading it; each node also waits on the TF / map-frame topics it derives.
     test/test_launch_logic.py checks they equal what ``run`` passes, scenario by scenario.
     """
-    from strapdown_ros.config.navigator import navigator_spec
-    from strapdown_ros.pipeline import expected_counts
-    from strapdown_ros.stages.aiding import aiding_spec
-    from strapdown_ros.stages.frames import FramesStage, node_derived_topics
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.plan.chain import live_graph
 
-    expected = expected_counts(scenario)
-    topics = scenario.recording.topics
-    subs = dict.fromkeys(expected, 1)
-    nav = navigator_spec(scenario)
-    if scenario.variation is not None:
-        subs[topics["reference_imu"]] += 1
-        subs[topics["reference_odom"]] += 1
-    if scenario.imu_errors is not None:
-        subs[scenario.imu_errors.topics(topics)[0]] += 1
-    aiding = aiding_spec(scenario)
-    aiding_topics = aiding.topics() if aiding else []
-    if aiding_topics:
-        subs[topics["reference_odom"]] += 1
-    if nav is not None:
-        subs[nav.imu_topic] += 1
-        if nav.truth_topic:
-            subs[nav.truth_topic] += 1
-    frames = FramesStage(scenario, cycles=max(expected.get(topics["reference_odom"], 1) - 1, 0))
-
-    def counts(names: list[str], derived: bool = True, static: bool = False) -> dict[str, int]:
-        if derived:
-            names = names + list(node_derived_topics(frames, names, static=static))
-        return {t: subs[t] for t in names if t in subs}
-
-    out: dict[str, dict[str, int]] = {}
-    if nav is not None:
-        out["navigator_node"] = counts([
-            topics[f"navigator_{k}"]
-            for k in ("odom", "fix", "error_position", "error_velocity", "error_attitude")
-        ])  # fmt: skip
-    if aiding_topics:
-        out["aiding_node"] = counts(list(aiding_topics), derived=False)
-    if scenario.imu_errors is not None:
-        out["imu_model_node"] = counts([scenario.imu_errors.topics(topics)[1]])
-    if scenario.variation is not None:
-        out["variation_node"] = counts([
-            topics[k]
-            for k in ("variation_imu", "variation_odom", "variation_fix",
-                      "variation_reference_imu", "variation_reference_odom")
-        ])  # fmt: skip
-    traj = [topics[k] for k in ("reference_imu", "reference_odom", "reference_fix")]
-    if scenario.recording.clock:
-        traj.append(topics["clock"])
-    out["trajectory_node"] = counts(traj, static=True)
-    return out
+    nodes, subscribers = live_graph(resolve_plan(scenario))
+    return {
+        n.executable: {t: subscribers[t] for t in n.published if t in subscribers} for n in nodes
+    }
 
 
 def _per_topic(counts: dict[str, int]) -> list[str]:
@@ -255,15 +213,15 @@ def plan_launch(
     if flow:
         recorder["report_progress"] = True
     plan.nodes.append(NodePlan("bag_recorder", recorder))
+    (source, source_counts), *downstream = counts.items()
     flow_nodes = ["bag_recorder"]
-    for name in ("navigator_node", "aiding_node", "imu_model_node", "variation_node"):
-        if name in counts:
-            params = {**common, **node_params, "subscribers_per_topic": _per_topic(counts[name])}
-            plan.nodes.append(NodePlan(name, params))
-            flow_nodes.append(name)
+    for name, published in reversed(downstream):  # the order run starts them: downstream first
+        params = {**common, **node_params, "subscribers_per_topic": _per_topic(published)}
+        plan.nodes.append(NodePlan(name, params))
+        flow_nodes.append(name)
     traj = {
         **common,
-        "subscribers_per_topic": _per_topic(counts["trajectory_node"]),
+        "subscribers_per_topic": _per_topic(source_counts),
         "time_source": "sim" if scenario.recording.clock else "wall",
         "wait_for_all_topics": False,
         "rate_factor": float(rate),
@@ -271,7 +229,7 @@ def plan_launch(
     }
     if flow:
         traj["flow_nodes"] = flow_nodes
-    plan.nodes.append(NodePlan("trajectory_node", traj))
+    plan.nodes.append(NodePlan(source, traj))
     return plan
 
 

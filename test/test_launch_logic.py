@@ -29,8 +29,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from strapdown_ros import launch_logic, pipeline
+from strapdown_ros import launch_logic
 from strapdown_ros.config import load_scenario
+from strapdown_ros.pipeline import processes, run_pipeline
 
 REPO = Path(__file__).resolve().parent.parent
 SCENARIOS = REPO / "config" / "scenarios"
@@ -68,6 +69,9 @@ def _run_children(scenario: Path, tmp_path: Path, rate_factor: float) -> dict[st
             if name == "trajectory_node":
                 raise _StopError
 
+        def poll(self):
+            return 0
+
         def wait_for(self, text, timeout_s, others):
             pass
 
@@ -77,16 +81,16 @@ def _run_children(scenario: Path, tmp_path: Path, rate_factor: float) -> dict[st
         def close(self):
             pass
 
-    real = pipeline._Child
-    pipeline._Child = FakeChild
+    real = processes.Child
+    processes.Child = FakeChild
     try:
         with pytest.raises(_StopError):
-            pipeline.run_pipeline(
+            run_pipeline(
                 scenario, tmp_path / "out", duration_s=DURATION, rate_factor=rate_factor,
                 progress=False,
             )  # fmt: skip
     finally:
-        pipeline._Child = real
+        processes.Child = real
     return started
 
 

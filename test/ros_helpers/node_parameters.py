@@ -1,8 +1,8 @@
 """The parameters each node really declares, read by constructing it in this process.
 
 ``declared_parameters(name, bag)`` → ``[(parameter, default, description), ...]`` in declaration
-order: every ``declare_*`` helper of ``strapdown_ros.nodes._common`` goes through
-``_common._declare``, which is wrapped here to record its arguments while the node class is
+order: every ``declare_*`` helper of ``strapdown_ros.nodes.parameters`` goes through
+``parameters._declare``, which is wrapped here to record its arguments while the node class is
 built (with the minimal parameters that let it build: the default scenario for 1 s, a temporary
 output directory, ``bag`` for the player). ``executor`` (declared by ``run_node`` after
 construction) is appended. Needs rclpy; used by test/test_node_usage_params.py and, as a
@@ -35,7 +35,7 @@ CLASSES = {
 def declared_parameters(name: str, bag: str | Path) -> list[tuple[str, object, str]]:
     import rclpy
 
-    from strapdown_ros.nodes import _common
+    from strapdown_ros.nodes import parameters
 
     module = importlib.import_module(f"strapdown_ros.nodes.{name}")
     cls = getattr(module, CLASSES[name])
@@ -45,7 +45,7 @@ def declared_parameters(name: str, bag: str | Path) -> list[tuple[str, object, s
                   f"bag:={bag}"):  # fmt: skip
             args += ["-p", p]
         recorded: list[tuple[str, object, str]] = []
-        real = _common._declare
+        real = parameters._declare
 
         def spy(node, pname, default, description, dynamic=False):
             recorded.append((pname, default, description))
@@ -53,12 +53,12 @@ def declared_parameters(name: str, bag: str | Path) -> list[tuple[str, object, s
 
         context = rclpy.Context()
         rclpy.init(args=args, context=context)
-        _common._declare = spy
+        parameters._declare = spy
         node = None
         try:
             node = _construct(cls, context)
         finally:
-            _common._declare = real
+            parameters._declare = real
             if node is not None:
                 node.destroy_node()
             rclpy.shutdown(context=context)
