@@ -49,7 +49,7 @@ MINIMUM: dict[str, str] = {
     "numba": "0.59.0",
     "PyYAML": "6.0.1",
     "matplotlib": "3.6.3",
-    "pydantic": "2.1.1",
+    "pydantic": "2.11.5",
     "rosbags": "0.11.0",
     "mcap": "1.5.0",
     "dask": "2023.9.0",

@@ -267,8 +267,8 @@ def test_planner_with_noble_pydantic_names_the_fix(tmp_path, monkeypatch) -> Non
         launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "",
                                       cwd=tmp_path)  # fmt: skip
     text = str(err.value)
-    assert "pydantic >= 2.1.1 is required (1.10.14 is installed)" in text
-    assert "pip install 'pydantic>=2.1.1'" in text and "requirements/ros-overlay.txt" in text
+    assert "pydantic >= 2.11.5 is required (1.10.14 is installed)" in text
+    assert "pip install 'pydantic>=2.11.5'" in text and "requirements/ros-overlay.txt" in text
 
 
 # --- the launch file's wiring, on a minimal stand-in of the launch API --------------------------

@@ -82,12 +82,12 @@ def test_old_pydantic_stops_with_the_fix(monkeypatch, capsys) -> None:
     real = rc._installed
     monkeypatch.setattr(rc, "_installed", lambda d: "1.10.14" if d == "pydantic" else real(d))
     (problem,) = rc.check_versions()
-    assert str(problem) == "pydantic >= 2.1.1 is required (1.10.14 is installed)"
+    assert str(problem) == "pydantic >= 2.11.5 is required (1.10.14 is installed)"
     with pytest.raises(SystemExit) as exit_:
         rc.exit_if_unsupported("navigator_node")
     assert exit_.value.code == 1
     err = capsys.readouterr().err
-    assert "fix: pip install 'pydantic>=2.1.1'" in err
+    assert "fix: pip install 'pydantic>=2.11.5'" in err
     assert "requirements/ros-overlay.txt" in err
 
 
