@@ -41,8 +41,8 @@ __all__ = [
 #: Oldest supported Python (what ``make test-minimum`` runs on is 3.12, Ubuntu 24.04's).
 MINIMUM_PYTHON = (3, 11)
 
-#: Distribution name → oldest supported version (measured: docs/development.md, "Minimum
-#: versions").
+#: Distribution name → oldest supported version (why each: requirements/minimum.txt and
+#: docs/install.md, "Supported versions"; measured by ``make test-minimum``).
 MINIMUM: dict[str, str] = {
     "numpy": "1.26.0",
     "scipy": "1.11.2",
