@@ -128,20 +128,22 @@ test-minimum: $(MPL_WHEEL)
 # install"): .venv-noble holds what apt and /opt/ros/jazzy give on Ubuntu 24.04 (the noble
 # versions of numpy, scipy, PyYAML, matplotlib, pydantic 1.10, pytest; test/data/rosdep/
 # noble_apt.yaml) and the ROS wheels; .venv-overlay sees it as system site-packages (a .pth
-# line, since --system-site-packages reaches only the base interpreter) and gets the one pip
-# command (requirements/ros-overlay.txt); then the fast tests, with the test tools pip adds.
+# calling site.addsitedir, so that its own .pth files run as a system site's do: the ROS wheels'
+# library loader; --system-site-packages reaches only the base interpreter) and gets the one pip
+# command (requirements/ros-overlay.txt); then the fast tests, with the test tools pip adds and
+# the ROS libraries on LD_LIBRARY_PATH (what sourcing /opt/ros/jazzy/setup.bash does).
 NOBLE_VENV    := $(CURDIR)/.venv-noble
 OVERLAY_VENV  := $(CURDIR)/.venv-overlay
 NOBLE_PYTHON_LIBS := numpy==1.26.4 scipy==1.11.4 PyYAML==6.0.1 matplotlib==3.6.3 \
 	pydantic==1.10.14 pytest==7.4.4 pytest-timeout==2.2.0 setuptools==68.1.2 wheel==0.42.0
 test-overlay: $(MPL_WHEEL)
 	rm -rf $(NOBLE_VENV) $(OVERLAY_VENV) && $(MIN_PYTHON) -m venv $(NOBLE_VENV)
-	$(ROS_PINS) > $(NOBLE_VENV)/ros-pins.txt
+	$(ROS_PINS) | grep -v '^setuptools==' > $(NOBLE_VENV)/ros-pins.txt
 	$(NOBLE_VENV)/bin/python -m pip install $(PIP_QUIET) --find-links $(NOBLE_WHEELS) \
 	    $(NOBLE_PYTHON_LIBS) -c $(NOBLE_VENV)/ros-pins.txt \
 	    ros-jazzy-rclpy ros-jazzy-common-interfaces ros-jazzy-rmw-fastrtps-cpp
 	$(MIN_PYTHON) -m venv $(OVERLAY_VENV)
-	$(NOBLE_VENV)/bin/python -c 'import site; print(site.getsitepackages()[0])' \
+	$(NOBLE_VENV)/bin/python -c 'import site; print(f"import site; site.addsitedir({site.getsitepackages()[0]!r})")' \
 	    > $$($(OVERLAY_VENV)/bin/python -c 'import site; print(site.getsitepackages()[0])')/noble-system.pth
 	$(OVERLAY_VENV)/bin/python -m pip install $(PIP_QUIET) -r requirements/ros-overlay.txt
 	$(OVERLAY_VENV)/bin/python -m pip freeze --exclude-editable > $(OVERLAY_VENV)/freeze.txt
@@ -149,6 +151,8 @@ test-overlay: $(MPL_WHEEL)
 	$(OVERLAY_VENV)/bin/python -m pip install $(PIP_QUIET) --no-deps --no-build-isolation -e .
 	$(OVERLAY_VENV)/bin/python tools/install_ament_prefix.py --symlink
 	AMENT_PREFIX_PATH=$(OVERLAY_VENV) PATH=$(OVERLAY_VENV)/bin:$$PATH \
+	    LD_LIBRARY_PATH=$$($(NOBLE_VENV)/bin/python -c \
+	        'import ros_wheels_bootstrapper as b; print(b.get_ros_paths())') \
 	    $(OVERLAY_VENV)/bin/python -m pytest $(FAST_PYTEST)
 
 # Benchmark-only dependencies (pyins for bench/bench_peers.py), pinned in requirements/bench.txt
