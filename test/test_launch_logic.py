@@ -241,7 +241,7 @@ def test_node_interpreter_reads_the_executables_interpreter_line(tmp_path) -> No
 
 def test_plan_in_the_nodes_interpreter_is_the_plan(tmp_path) -> None:
     """plan_launch_with (a child process, JSON) gives exactly plan_launch's plan, and relays
-    its refusals as LaunchError with the same message."""
+    its refusals as LaunchError with the same message (about 1.5 s of CPU per child)."""
     args = {"duration_s": "5.0", "rate_factor": "5.0", "cwd": tmp_path}
     here = launch_logic.plan_launch(str(SCENARIOS / "car.yaml"), "o", **args)
     child = launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "o",
@@ -250,9 +250,6 @@ def test_plan_in_the_nodes_interpreter_is_the_plan(tmp_path) -> None:
     (tmp_path / "o").mkdir()
     with pytest.raises(launch_logic.LaunchError, match=r"out:=o: .* exists already"):
         launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "o", **args)
-    with pytest.raises(launch_logic.LaunchError, match="force:=maybe: must be true or false"):
-        launch_logic.plan_launch_with(sys.executable, str(SCENARIOS / "car.yaml"), "",
-                                      force="maybe", cwd=tmp_path)  # fmt: skip
 
 
 def test_planner_with_noble_pydantic_names_the_fix(tmp_path, monkeypatch) -> None:
