@@ -82,9 +82,11 @@ test: setup
 # The fast tier: no test that starts ROS processes (marker dds, set automatically by
 # test/tiers.py; rclpy is then blocked in pytest and its children) and none marked slow.
 FAST_MARKERS := not dds and not slow
+# two workers, each test file on one of them (module fixtures built once)
+FAST_WORKERS := -n 2 --dist loadfile
 test-fast: setup
 	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
-	$(VPY) -m pytest -m "$(FAST_MARKERS)" $(PYTEST_ARGS) || exit $$?; \
+	$(VPY) -m pytest -m "$(FAST_MARKERS)" $(FAST_WORKERS) $(PYTEST_ARGS) || exit $$?; \
 	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
 
 # --- Supported versions, measured (slow; not part of make test) ------------------------------
@@ -198,3 +200,18 @@ clean:
 
 distclean: clean
 	rm -rf $(VENV) .venv-min .venv-noble .venv-overlay .noble-wheels
+
+# The benchmark suite (docs/suite.md): fixed-seed scenarios generated into out/suite/<name>.
+# SUITE_ARGS passes options to generate, e.g. SUITE_ARGS="--duration 60".
+SUITE := config/suite/car_city.yaml config/scenarios/default.yaml config/suite/rtk_survey.yaml \
+         config/suite/static_alignment.yaml config/suite/misalignment.yaml config/suite/timing.yaml
+SUITE_ARGS ?=
+.PHONY: suite
+suite: setup
+	@mkdir -p out/suite
+	@for f in $(SUITE); do \
+	    name=$$(basename $$f .yaml); echo "== $$name"; \
+	    $(VENV_ABS)/bin/strapdown-sim generate $$f --out out/suite/$$name --force --quiet \
+	        $(SUITE_ARGS) || exit $$?; \
+	done
+	@echo "suite bags in out/suite/ (score one: strapdown-sim score out/suite/NAME --topic ...)"

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from strapdown_ros.bag.cdr import TF_MESSAGE
+from strapdown_ros.bag.selection import TopicSelection
 from strapdown_ros.bag.writer import BagWriter
 from strapdown_ros.config import Scenario
 from strapdown_ros.core.exact_update import Residuals
@@ -80,6 +81,7 @@ def generate_dataset(
     out: str | Path,
     *,
     storage: str | None = None,
+    compression: str | None = None,
     force: bool = False,
     progress: Progress | None = None,
 ) -> DatasetSummary:
@@ -89,11 +91,18 @@ def generate_dataset(
     the bag is written atomically (nothing is left at ``out`` on error) and an existing ``out``
     is only replaced with ``force``. The stages of the chain (:mod:`strapdown_ros.plan.chain`)
     run piece by piece in a forked producer while the bag writer writes the previous piece.
+    ``storage``/``compression`` (None: ``recording.storage``/``recording.compression``): the
+    storage plugin and MCAP chunk compression. Only the topics ``recording.include`` /
+    ``recording.exclude`` select are written (:mod:`strapdown_ros.bag.selection`); every
+    stage still runs.
     """
     start = time.perf_counter()
     plan = scenario if isinstance(scenario, Plan) else resolve_plan(scenario)
     scenario = plan.scenario
     storage = storage or scenario.recording.storage
+    compression = compression or scenario.recording.compression
+    selection = TopicSelection.of_recording(scenario.recording)
+    written = set(selection.check(plan.topics))  # a pattern matching nothing is an error
     out = Path(out)
     # Fail early on the destination (BagWriter checks again when it opens).
     if out.exists() and not force:
@@ -125,13 +134,17 @@ def generate_dataset(
     producer = Producer(pieces())
     done = 0
     parts: dict[str, list[Residuals]] = {}
-    latched = [p.topic for p in plan.topics.values() if p.key == "tf_static"]
+    latched = [p.topic for p in plan.topics.values() if p.key == "tf_static" and p.topic in written]
     try:
         custom_data = bag_custom_data(plan)
-        with BagWriter(out, storage=storage, force=force, custom_data=custom_data) as writer:
+        with BagWriter(
+            out, storage=storage, compression=compression, force=force, custom_data=custom_data
+        ) as writer:
             for topic in latched:  # offered as a latched publisher's (ros2 bag play keeps it)
                 writer.add_topic(topic, TF_MESSAGE, qos=STATIC_QOS)
             for cycles, res, batches, nav_errors in producer:  # type: ignore[misc]
+                if len(written) < len(plan.topics):
+                    batches = [b for b in batches if b.topic in written]
                 writer.write_batches(batches)
                 summary.navigation = nav_errors
                 for name, r in res.items():

@@ -149,19 +149,19 @@ def parse_float(name: str, text: str) -> float:
         raise LaunchError(f"{name}:={text}: must be a number") from None
 
 
-def pipeline_counts(scenario: Any) -> dict[str, dict[str, int]]:
-    """Node → {topic it publishes: subscriptions to wait for}, for the nodes the scenario needs,
-    in chain order (the source, trajectory_node, first).
+def pipeline_counts(plan: Any) -> dict[str, dict[str, int]]:
+    """Node → {topic it publishes: subscriptions to wait for}, for the nodes the scenario's plan
+    (:func:`strapdown_ros.plan.resolve_plan`) needs, in chain order (the source,
+    trajectory_node, first).
 
     Taken from the live graph of the scenario's plan, as ``strapdown-sim run`` takes them
     (:func:`strapdown_ros.plan.chain.live_graph`): every produced topic has the recorder, plus
     the nodes reading it; each node also waits on the TF / map-frame topics it derives.
     test/test_launch_logic.py checks they equal what ``run`` passes, scenario by scenario.
     """
-    from strapdown_ros.plan import resolve_plan
     from strapdown_ros.plan.chain import live_graph
 
-    nodes, subscribers = live_graph(resolve_plan(scenario))
+    nodes, subscribers = live_graph(plan)
     return {
         n.executable: {t: subscribers[t] for t in n.published if t in subscribers} for n in nodes
     }
@@ -185,10 +185,13 @@ def plan_launch(
     Arguments are the launch arguments (strings, as ``ros2 launch`` passes them, or values).
     ``rate_factor`` > 1 or <= 0 (unpaced) turns on flow control as ``strapdown-sim run`` does
     (the trajectory node never runs more than a window ahead of any consumer: lossless).
-    Raises :class:`LaunchError` for a bad argument or an existing ``out`` without ``force``,
-    and the scenario's :class:`~strapdown_ros.config.ScenarioError`.
+    Raises :class:`LaunchError` for a bad argument, an existing ``out`` without ``force`` or a
+    scenario section no node runs live (``aided``, ``timing``), and the scenario's
+    :class:`~strapdown_ros.config.ScenarioError`.
     """
     from strapdown_ros.config import load_scenario
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.plan.chain import offline_only
 
     force = force if isinstance(force, bool) else parse_bool("force", force)
     duration = parse_float("duration_s", duration_s) if isinstance(duration_s, str) else duration_s
@@ -199,10 +202,17 @@ def plan_launch(
     if not path.is_absolute():
         path = Path(cwd if cwd is not None else os.getcwd()).absolute() / path
     scenario = load_scenario(path, [], duration if duration > 0 else None)
+    resolved = resolve_plan(scenario)
+    offline = offline_only(resolved)
+    if offline:  # as strapdown-sim run refuses them
+        raise LaunchError(
+            f"scenario:={scenario_path}: its {', '.join(offline)} section(s) run in "
+            "`strapdown-sim generate` only: no node runs them live yet (remove them to launch)"
+        )
     out_dir = resolve_out(out, force, cwd)
 
     flow = rate > 1 or rate <= 0
-    counts = pipeline_counts(scenario)
+    counts = pipeline_counts(resolved)
     common: dict[str, Any] = {"scenario": str(path), "duration_s": float(duration)}
     node_params: dict[str, Any] = {"qos_depth": 10000}
     if flow:

@@ -6,12 +6,15 @@ payloads, too many to pickle through the queue's pipe cheaply, so the worker spo
 piece's payloads into one file in a private directory on ``/dev/shm`` (a RAM file system; the
 system temporary directory where there is none) and sends only the stamps and the layout; the
 writing process reads the file back in one call and splits it into the very same ``bytes``
-objects. Elsewhere (no ``fork``) the producer is a thread and nothing is copied. Pure standard
-library and numpy; no ROS. Measurements: docs/benchmarks.md.
+objects. Elsewhere (no ``fork``) the producer is a thread and nothing is copied. The forked
+worker dies with its parent whatever ends the parent, SIGKILL included (``PR_SET_PDEATHSIG``),
+and removes the spool as it goes. Pure standard library and numpy; no ROS. Measurements:
+docs/benchmarks.md.
 """
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing as mp
 import os
 import pickle
@@ -164,14 +167,45 @@ class _PipeChannel:
         self.writer.close()
 
 
-def _produce(items: Iterator[Piece], out: object, spool: Path | None = None) -> None:
+#: ``prctl`` option: the signal the kernel sends this process when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int, spool: Path) -> None:
+    """In the forked worker: the signals that stop it, and its death with the parent.
+
+    SIGINT and SIGHUP are ignored (Ctrl-C and a closed terminal reach the parent, in the same
+    process group, which stops the worker); SIGTERM (from :meth:`Producer.close`, or from the
+    kernel when the parent dies: ``PR_SET_PDEATHSIG``, Linux) removes the spool and exits at
+    once, without a traceback. A parent that died before the request was made is caught by
+    comparing the parent's pid.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    def stop(signum: int, frame: object) -> None:
+        shutil.rmtree(spool, ignore_errors=True)
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: close() still stops the worker
+        return
+    if os.getppid() != parent:  # the parent died between the fork and the request
+        stop(signal.SIGTERM, None)
+
+
+def _produce(items: Iterator[Piece], out: object, spool: Path | None = None,
+             parent: int | None = None) -> None:  # fmt: skip
     """Producer body (thread or forked process): put every item, then _END or the exception.
 
-    A forked worker (``spool`` given) ignores SIGINT: Ctrl-C reaches the parent (same process
-    group), which stops the worker; the worker must not print a traceback of its own.
+    A forked worker (``spool`` and ``parent`` given) takes its signals first
+    (:func:`_die_with_parent`); it must not print a traceback of its own.
     """
-    if spool is not None:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if spool is not None and parent is not None:
+        _die_with_parent(parent, spool)
     try:
         k = 0
         for item in items:
@@ -202,7 +236,8 @@ class Producer:
             self._spool = Path(tempfile.mkdtemp(prefix=prefix, dir=root))
             self._queue = _PipeChannel(ctx, depth)
             self._worker: threading.Thread | mp.process.BaseProcess = ctx.Process(
-                target=_produce, args=(items, self._queue, self._spool), daemon=True
+                target=_produce, args=(items, self._queue, self._spool, os.getpid()),
+                daemon=True,
             )
         else:
             self._queue = queue.Queue(maxsize=depth)
@@ -232,6 +267,9 @@ class Producer:
         if self._worker.is_alive():
             self._worker.terminate()
         self._worker.join(timeout=5)
+        if self._worker.is_alive():  # inside a long compiled call: its handler waits for it
+            self._worker.kill()
+            self._worker.join()
         self._queue.close()  # type: ignore[union-attr]
         if self._spool is not None:
             shutil.rmtree(self._spool, ignore_errors=True)

@@ -259,3 +259,22 @@ def test_odometer_quantization_bound_and_statistics():
     parts = np.concatenate([m.apply(speed[a:b]) for a, b in ((0, 1), (1, 9), (9, 50_000))])
     assert np.array_equal(parts, whole)
     assert full.variance(period) == 0.01**2 + (0.01 / period) ** 2 / 6
+
+
+def test_odometer_counts_nothing_at_rest():
+    """An encoder counts the wheel's rotation: at rest (after driving, residual carried)
+    exactly zero speed whatever the scale factor and noise; rolling slower than σ_w the noise
+    σ is the speed itself (slip cannot exceed the rolling), from σ_w up the full σ_w."""
+    period = 0.02
+    e = OdometerErrors(scale_factor=3e-3, scale_factor_sigma=5e-3, white=0.02, pulses_per_m=48)
+    speed = np.concatenate([np.linspace(0.0, 8.0, 500), np.full(500, 8.0),
+                            np.linspace(8.0, 0.0, 500), np.zeros(2000)])  # fmt: skip
+    out = OdometerErrorModel(e, period, seed=4).apply(speed)
+    assert np.all(out[1500:] == 0.0)
+    assert np.any(out[:1500] != 0.0)  # not vacuous: it counts while rolling
+    n = 200_000
+    for u, sigma in ((0.005, 0.005), (0.05, 0.02)):
+        meas = OdometerErrorModel(OdometerErrors(white=0.02), period, seed=2).apply(
+            np.full(n, u)
+        )
+        assert abs(meas.std() / sigma - 1) < 4 / math.sqrt(2 * n), (u, meas.std())

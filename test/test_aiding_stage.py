@@ -191,7 +191,9 @@ def test_gnss_equals_antenna_truth(ideal_bag, scenario):
     v_enu = np.einsum("nij,nj->ni", _enu_rows(fix.latitude, fix.longitude), v_a)
     assert np.max(np.abs(vel.linear - v_enu)) < 1e-9
     assert np.all(np.abs(v_a).max(axis=1) > 10)  # not vacuous: the aircraft flies
-    assert np.all(fix.position_covariance == 0) and np.all(fix.position_covariance_type == 2)
+    # errors off: no variance describes the fix; COVARIANCE_TYPE_UNKNOWN (0), not an all-zero
+    # DIAGONAL_KNOWN (2) that a filter would take as an exact measurement
+    assert np.all(fix.position_covariance == 0) and np.all(fix.position_covariance_type == 0)
     assert np.all(fix.status == 0) and np.all(fix.service == 1)
     assert np.all(vel.angular == 0)
     assert fix.frame_id == "gnss" and vel.frame_id == "gnss"
@@ -403,3 +405,26 @@ def test_nonfinite_and_out_of_order_truth_dropped(scenario, reference):
         stamps = cdr.deserialize(topic_type(topic), pay).stamps_ns
         want = [p for p, t in zip(pay, stamps, strict=True) if t != t_bad]
         assert out[topic] == want, topic
+
+
+def test_wheel_at_rest_reports_exactly_zero(tmp_path):
+    """A vehicle at rest (the static scenario) with the ABS encoder preset (scale factor,
+    noise, 48 pulses/m): no pulse is counted, every speed is exactly 0; a GNSS with errors off
+    types its fix covariance UNKNOWN, one with errors DIAGONAL_KNOWN."""
+    from strapdown_ros.generate import generate_dataset
+
+    scenario = load_scenario(
+        REPO / "config/scenarios/static.yaml",
+        [
+            "aiding.wheel_odometer={preset: abs_sensor, rate_hz: 50, seed: 3, "
+            "lever_arm_m: [0.5, -0.8, 0.45]}",
+            "aiding.gnss={rate_hz: 5}",
+        ],
+        duration_s=20.0,
+    )
+    generate_dataset(scenario, tmp_path / "bag", progress=None)
+    contents = read_bag(tmp_path / "bag")
+    wheel = contents["/wheel/twist"]
+    assert len(wheel.stamps_ns) == 20 * 50 + 1
+    assert np.all(wheel.linear == 0.0), np.abs(wheel.linear).max()
+    assert np.all(contents["/gnss/fix"].position_covariance_type == 0)

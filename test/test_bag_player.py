@@ -241,11 +241,44 @@ def test_corrupt_data_stops_the_player(bag, ros_env, tmp_path):
         (["remap:=['/nope:=/x']"], r"cannot remap \['/nope'\]"),
         (["start_offset_s:=5.0"], r"parameter 'start_offset_s': 5 s is beyond the bag's 2 s"),
         (["start_offset_s:=-1.0"], r"parameter 'start_offset_s': must be >= 0"),
+        (["duration_s:=-1.0"], r"parameter 'duration_s': must be >= 0"),
+        (["clock_rate_hz:=-5.0"], r"parameter 'clock_rate_hz': must be >= 0"),
         (["realtime_priority:=100"], r"parameter 'realtime_priority': must be 0 \(off\) or"),
     ],
-    ids=["topic", "remap-syntax", "remap-topic", "offset", "negative-offset", "rt"],
+    ids=["topic", "remap-syntax", "remap-topic", "offset", "negative-offset", "duration",
+         "clock-rate", "rt"],
 )
 def test_invalid_parameters_exit_2(params, expected, bag, ros_env):
     rc, out = _refused(ros_env, f"bag:={bag.path}", *params)
     assert rc == 2, out
     assert re.search(expected, out), out
+
+
+def test_window_and_clock_rate(bag, procs, ros_env, tmp_path):
+    """From 0.5 s for 1 s (IMU stamps 0.500..1.500 s: 201 messages), /clock at 10 Hz of bag
+    time: 11 ticks, each the log time of the first message of its 100 ms (0.5, 0.6 .. 1.5 s)."""
+    recording, player = _play(
+        procs, ros_env, tmp_path, {"/reference/imu": 201, "/clock": 11},
+        f"bag:={bag.path}", "topics:=['/reference/imu']", "start_offset_s:=0.5",
+        "duration_s:=1.0", "clock_rate_hz:=10.0", "rate_factor:=2.0",
+    )  # fmt: skip
+    assert recording["topics"]["/reference/imu"] == bag.topics["/reference/imu"].payloads[99:300]
+    t0 = int(bag.topics["/reference/odom"].log_time_ns[0])
+    ticks = [clock_payload(t0 + 500_000_000 + k * 100_000_000) for k in range(11)]
+    assert recording["topics"]["/clock"] == ticks
+    assert "/clock: 11 (clock)" in player.output, player.describe()
+
+
+def test_pacing_warning_while_playing(bag, procs, ros_env, tmp_path):
+    """A threshold no publication meets (1 µs): warnings while it plays, before the summary,
+    at most one a second (2 s of data at 1x: a few, not one per message)."""
+    _, player = _play(
+        procs, ros_env, tmp_path, {"/reference/imu": 400},
+        f"bag:={bag.path}", "topics:=['/reference/imu']", "pacing_warn_ms:=0.001",
+    )  # fmt: skip
+    out = player.output
+    warnings = [m.start() for m in re.finditer(r"pacing: \d+ message\(s\) published more than "
+                                               r"0\.001 ms late", out)]  # fmt: skip
+    summary = out.index("played 400 messages")
+    assert warnings and warnings[0] < summary, player.describe()
+    assert len(warnings) <= 5, player.describe()

@@ -22,7 +22,9 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 TOOL = REPO / "tools" / "compare_generate.py"
 #: The last commit whose numbers are the reference: every later commit must reproduce them.
-BASE = "3789100"
+#: 85f039d: 3789100's numbers except, on purpose, /tf_static (a transform per aiding sensor) and
+#: /wheel/twist (the encoder counts from mid-pulse, its noise bounded by the speed: zero at rest).
+BASE = "85f039d"
 DURATION_CAP_S = "30"
 SCENARIOS = sorted((REPO / "config" / "scenarios").glob("*.yaml"))
 def _compare_generate():

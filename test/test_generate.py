@@ -80,6 +80,18 @@ def write_scenario(tmp_path: Path, name: str, doc: dict) -> Path:
     return path
 
 
+def generate_exact_stream(tmp_path: Path, name: str, doc: dict):
+    """``strapdown-sim generate`` of the scenario ``doc`` (written to ``<name>.yaml``): the file
+    and its reference stream read back from the bag, checked to obey the exactness rule."""
+    path = write_scenario(tmp_path, name, doc)
+    out = tmp_path / "bag"
+    proc = run_cli("generate", str(path), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    stream = bag_stream(out)
+    assert stream_residuals(stream).within_spec()
+    return path, stream
+
+
 def run_cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "strapdown_ros.cli", *args],
@@ -127,12 +139,7 @@ def test_samples_kind_round_trip_through_csv(tmp_path):
         "rate_hz": 200,
         "trajectory": {"kind": "samples", "file": "truth.csv", "knots": 0.5, "degree": 5},
     }
-    path = write_scenario(tmp_path, "samples", doc)
-    out = tmp_path / "bag"
-    proc = run_cli("generate", str(path), "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
-    regenerated = bag_stream(out)
-    assert stream_residuals(regenerated).within_spec()
+    path, regenerated = generate_exact_stream(tmp_path, "samples", doc)
     # (1) the regeneration reproduces the spline model (even cycles exactly, odd cycles up to
     # Method 2's deviation); (2) the spline model follows the original within its fit
     # tolerance: the error over the whole run is of the size of the fit residual at the
@@ -404,12 +411,7 @@ def test_samples_kind_from_a_bag_odometry_topic(tmp_path):
         "trajectory": {"kind": "samples", "bag": "src", "topic": "/reference/odom",
                        "knots": 1.0, "degree": 5},
     }  # fmt: skip
-    path = write_scenario(tmp_path, "from_bag", doc)
-    out = tmp_path / "bag"
-    proc = run_cli("generate", str(path), "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
-    regenerated = bag_stream(out)
-    assert stream_residuals(regenerated).within_spec()
+    path, regenerated = generate_exact_stream(tmp_path, "from_bag", doc)
     original = local_to_e0(build_trajectory(parse_scenario(SCENARIOS["segments"])).local_truth(
         regenerated.t))  # fmt: skip
     err = np.linalg.norm(regenerated.r_e0 - original.r_e0, axis=1)

@@ -528,7 +528,7 @@ def test_matrix_forms():
         (
             {"accel_bias_instability_mg": 0.1},
             "imu_errors.accel_correlation_time_s",
-            "is required when accel_bias_instability is > 0",
+            "is required when accel_bias_instability_mg is > 0",
         ),
         (
             {"preset": "industrial", "gyro_correlation_time_s": -1},

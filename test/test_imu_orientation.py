@@ -9,48 +9,27 @@ here (Bowring's iteration on WGS-84), the matrices by scipy.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-import yaml
-from rosbags.rosbag2 import Reader
-from rosbags.typesys import Stores, get_typestore
+from rosbags_read import generate_edited, messages_by_stamp
 from scipy.spatial.transform import Rotation
 
-from strapdown_ros.config import load_scenario
-from strapdown_ros.generate import generate_dataset
-
-DEFAULT = Path(__file__).resolve().parent.parent / "config" / "scenarios" / "default.yaml"
 A, F = 6378137.0, 1.0 / 298.257223563  # WGS-84
 E2 = F * (2.0 - F)
 
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("imu_orientation")
-    doc = yaml.safe_load(DEFAULT.read_text())
-    for key in ("variation", "navigator", "imu_errors", "aiding"):
-        doc.pop(key, None)
-    doc["duration_s"] = 4.0
-    doc["trajectory"]["segments"] = [
-        {"duration_s": 4.0, "roll_rate_dps": 20.0, "heading_rate_dps": 10.0, "transition_s": 0.5}
-    ]
-    path = tmp / "rotating.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    generate_dataset(load_scenario(path), tmp / "bag")
-    return tmp / "bag"
+    def rotating(doc):
+        for key in ("variation", "navigator", "imu_errors", "aiding"):
+            doc.pop(key, None)
+        doc["duration_s"] = 4.0
+        doc["trajectory"]["segments"] = [
+            {"duration_s": 4.0, "roll_rate_dps": 20.0, "heading_rate_dps": 10.0,
+             "transition_s": 0.5}
+        ]  # fmt: skip
 
-
-def _messages(bag, topic):
-    ts = get_typestore(Stores.ROS2_JAZZY)
-    out = {}
-    with Reader(bag) as reader:
-        conns = [c for c in reader.connections if c.topic == topic]
-        for conn, _, raw in reader.messages(connections=conns):
-            msg = ts.deserialize_cdr(raw, conn.msgtype)
-            out[msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec] = msg
-    return out
+    return generate_edited(tmp_path_factory.mktemp("imu_orientation"), "default", rotating)
 
 
 def _c_enu_ecef(r):
@@ -72,8 +51,8 @@ def _c_enu_ecef(r):
 
 def test_imu_orientation_is_the_attitude_at_its_stamp(bag):
     """Measured: 2.4e-16 rad at most; the limit 1e-14 rad. One cycle off: 1.7e-3 rad."""
-    imu = _messages(bag, "/reference/imu")
-    odom = _messages(bag, "/reference/odom")
+    imu = messages_by_stamp(bag, "/reference/imu")
+    odom = messages_by_stamp(bag, "/reference/odom")
     stamps = sorted(imu)
     assert len(stamps) == 800 and all(s in odom for s in stamps)
 

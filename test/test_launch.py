@@ -36,20 +36,15 @@ import yaml
 from node_testing import executable
 
 from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.plan.chain import CHAIN
 
 REPO = Path(__file__).resolve().parent.parent
 PARAMS = REPO / "config" / "params.yaml"
 LAUNCH = REPO / "launch" / "pipeline.launch.py"
 SCENARIOS = REPO / "config" / "scenarios"
 SCENARIO = SCENARIOS / "default.yaml"
-NODES = (
-    "trajectory_node",
-    "variation_node",
-    "imu_model_node",
-    "navigator_node",
-    "aiding_node",
-    "bag_recorder",
-)
+#: The nodes of the chain's links, then the recorder: what the launch file must start.
+NODES = (*(link.node for link in CHAIN if link.node is not None), "bag_recorder")
 NO_LAUNCH = (
     "launch/launch_ros are not installed: the ROS 2 Jazzy wheels from PyPI used here do not ship "
     "them (only a ROS install does). Checked instead: the launch file imports without them and "

@@ -30,7 +30,7 @@ import pytest
 import yaml
 
 from strapdown_ros import launch_logic
-from strapdown_ros.config import load_scenario
+from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.pipeline import processes, run_pipeline
 
 REPO = Path(__file__).resolve().parent.parent
@@ -192,6 +192,18 @@ def test_relative_paths_are_made_absolute(tmp_path) -> None:
 def test_bad_launch_arguments(args, match, tmp_path) -> None:
     with pytest.raises(launch_logic.LaunchError, match=match):
         launch_logic.plan_launch(str(SCENARIOS / "car.yaml"), "", cwd=tmp_path, **args)
+
+
+def test_offline_only_sections_are_refused_before_anything_starts(tmp_path) -> None:
+    """A scenario with a section no node runs live (the suite's timing.yaml) is refused as
+    strapdown-sim run refuses it, instead of launching a pipeline that lacks its topics."""
+    with pytest.raises(launch_logic.LaunchError, match=r"its timing section\(s\) run in "):
+        launch_logic.plan_launch(str(REPO / "config" / "suite" / "timing.yaml"), "", cwd=tmp_path,
+                                 duration_s=DURATION)  # fmt: skip
+    with pytest.raises(ScenarioError, match="timing"):  # what run says
+        run_pipeline(REPO / "config" / "suite" / "timing.yaml", tmp_path / "r", duration_s=DURATION,
+                     progress=False)  # fmt: skip
+    assert not list(tmp_path.iterdir())
 
 
 def test_bad_scenario_is_reported_by_key(tmp_path) -> None:

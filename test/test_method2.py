@@ -90,7 +90,7 @@ def test_pair_solution_equals_direct_six_by_six_solve():
     r0, r2 = rng.normal(size=(2, n, 3)) * 10
     v0, v2 = rng.normal(size=(2, n, 3)) * 10
     g0, g1, g2 = rng.normal(size=(3, n, 3))
-    dv1, dv2 = m2.solve_pairs(c0, c1, gv1, gr1, gv2, gr2, r0, r2, v0, v2, g0, g1, g2, t)
+    dv1, dv2 = m2.PairSystem(c0, c1, gv1, gr1, gv2, gr2, r0, r2, v0, v2, g0, g2, t).solve(g1)
     for i in range(n):
         a = np.zeros((6, 6))
         a[:3, :3] = c0[i] @ gv1[i]

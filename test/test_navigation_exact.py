@@ -45,7 +45,12 @@ def default_60() -> Stream:
     return _reference("default", 60.0)
 
 
-def _max_errors(sol, stream: Stream) -> dict[str, float]:
+def _max_errors(stream: Stream, n: int, p: int, mode: str = "exact") -> dict[str, float]:
+    """Largest errors of the multirate navigator (N, P, ``mode``) started on and run through
+    ``stream`` against its truth: horizontal, vertical (m), velocity (m/s), attitude (rad)."""
+    sol = navigate_multirate(
+        state_from_stream(stream), stream.dalpha, stream.dv, stream.period, n, p, mode=mode
+    )
     e = navigation_errors(sol, stream)
     return {
         "horizontal": float(e.horizontal.max()),
@@ -107,12 +112,7 @@ EXACT_60S = {
 def test_exact_mode_on_maneuvering_aircraft(default_60: Stream, n: int, p: int) -> None:
     """60 s of default.yaml at 200 Hz: errors at rounding/quadrature level (:data:`EXACT_60S`),
     against 0.29 m for the paper mode at N=10."""
-    st = state_from_stream(default_60)
-    err = _max_errors(
-        navigate_multirate(st, default_60.dalpha, default_60.dv, default_60.period, n, p,
-                           mode="exact"),
-        default_60,
-    )  # fmt: skip
+    err = _max_errors(default_60, n, p)
     limits = dict(zip(("horizontal", "vertical", "velocity", "attitude"), EXACT_60S[n, p],
                       strict=True))  # fmt: skip
     for key, measured in limits.items():
@@ -120,10 +120,8 @@ def test_exact_mode_on_maneuvering_aircraft(default_60: Stream, n: int, p: int) 
 
 
 def test_exact_mode_beats_paper_mode_by_orders(default_60: Stream) -> None:
-    st = state_from_stream(default_60)
-    args = (st, default_60.dalpha, default_60.dv, default_60.period, 10, 2)
-    exact = _max_errors(navigate_multirate(*args, mode="exact"), default_60)
-    paper = _max_errors(navigate_multirate(*args, mode="paper"), default_60)
+    exact = _max_errors(default_60, 10, 2, "exact")
+    paper = _max_errors(default_60, 10, 2, "paper")
     for key in exact:
         assert exact[key] * 1e4 < paper[key], (key, exact[key], paper[key])
 
@@ -132,11 +130,7 @@ def test_exact_mode_at_rest_holds_position() -> None:
     """static.yaml (IMU at rest on the rotating Earth) for 10 min at N = 20 (measured: 2.4e-7 m
     horizontal, 2.3e-7 m vertical, 8.3e-10 m/s; limits 10 times these)."""
     ref = _reference("static", 600.0)
-    err = _max_errors(
-        navigate_multirate(state_from_stream(ref), ref.dalpha, ref.dv, ref.period, 20, 4,
-                           mode="exact"),
-        ref,
-    )  # fmt: skip
+    err = _max_errors(ref, 20, 4)
     assert err["horizontal"] < 2.4e-6
     assert err["vertical"] < 2.3e-6
     assert err["velocity"] < 8.3e-9

@@ -62,6 +62,9 @@ MODULE_KEYS: dict[str, str | None] = {
     "dask": None,  # campaign engine
     "distributed": None,  # campaign engine
     "pyarrow": None,  # campaign results (Parquet)
+    "lz4": None,  # MCAP lz4 chunks (recording.compression: lz4); installed with rosbags
+    "pandas": None,  # bench peer pyins' data frames (test_score, bench/); skipped without it
+    "pyins": None,  # the bench peer (requirements/bench.txt); its tests skip without it
 }
 
 #: Keys used without an import: pytest plugins configured in setup.cfg.

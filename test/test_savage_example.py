@@ -32,6 +32,7 @@ Derivations used by the assertions (first order in the paper, exact here):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -149,12 +150,29 @@ def test_method1_multiplier_is_unimodular_and_near_minus_one():
             assert abs(lam + np.exp(-2j * a / 3)) < 0.05 * a**2 + 1e-10
 
 
-@pytest.mark.parametrize("model", ["j2", "spherical"])
-@pytest.mark.parametrize("name", list(SETS))
+@functools.cache
+def generated(name: str, model: str, method: int) -> tuple[Example, Stream]:
+    """The example of parameter set ``name`` and its variation stream by ``method`` (1 or 2),
+    each computed once per module (both tests below read Method 1's)."""
+    ex = _example(name, model)
+    return ex, generate_variation(ex.ref, ex.offsets, method=method)
+
+
+@functools.cache
+def _example(name: str, model: str) -> Example:
+    return example(**SETS[name], model=model)
+
+
+#: Every parameter set with the J2 and the spherical gravity model.
+every_set_and_model = pytest.mark.parametrize(
+    ("name", "model"), [(name, model) for model in ("j2", "spherical") for name in SETS]
+)
+
+
+@every_set_and_model
 def test_method1_sustains_the_odd_even_oscillation(name, model):
     p = SETS[name]
-    ex = example(**p, model=model)
-    m1 = generate_variation(ex.ref, ex.offsets, method=1)
+    ex, m1 = generated(name, model, 1)
     assert stream_residuals(m1).within_spec()
     n = m1.cycles + 1
     e = m1.v_e0 - ex.theory(n)  # V_var - V_theory, E0
@@ -195,13 +213,11 @@ def test_method1_sustains_the_odd_even_oscillation(name, model):
     assert abs(mag2[-10:].mean() / mag2[:10].mean() - 1) < 1e-3
 
 
-@pytest.mark.parametrize("model", ["j2", "spherical"])
-@pytest.mark.parametrize("name", list(SETS))
+@every_set_and_model
 def test_method2_settles_to_the_tangential_velocity(name, model):
     p = SETS[name]
-    ex = example(**p, model=model)
-    m2 = generate_variation(ex.ref, ex.offsets, method=2)
-    m1 = generate_variation(ex.ref, ex.offsets, method=1)
+    ex, m2 = generated(name, model, 2)
+    m1 = generated(name, model, 1)[1]
     assert stream_residuals(ex.ref).within_spec()
     assert stream_residuals(m2).within_spec()
     n = m2.cycles + 1

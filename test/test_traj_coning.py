@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from truth_checks import velocity_and_position_derivative
 
 from strapdown_ros.config import ScenarioError, parse_scenario
 from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef
@@ -117,13 +118,7 @@ def test_sinusoid_velocity_is_derivative_of_position():
     t = np.linspace(1.0, 299.0, 1500)
     h = 0.01
 
-    def r_ecef(tt):
-        lt = traj.local_truth(tt)
-        return geodetic_to_ecef(lt.lat, lt.lon, lt.alt)
-
-    fd = (8 * (r_ecef(t + h) - r_ecef(t - h)) - (r_ecef(t + 2 * h) - r_ecef(t - 2 * h))) / (12 * h)
-    lt = traj.local_truth(t)
-    v_e = np.einsum("nij,nj->ni", dcm_ned_to_ecef(lt.lat, lt.lon), lt.v_ned)
+    v_e, fd = velocity_and_position_derivative(traj, t, h)
     assert np.abs(fd - v_e).max() < 1e-6
 
 

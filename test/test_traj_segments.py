@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+from truth_checks import velocity_and_position_derivative
 
 from strapdown_ros.config import ScenarioError, parse_scenario
-from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef, radii
+from strapdown_ros.core.earth import radii
 from strapdown_ros.core.rotations import euler_from_dcm, vee
 from strapdown_ros.core.trajectory.base import TrajectoryError
 from strapdown_ros.core.trajectory.latlon_path import LatLonPath
@@ -146,13 +147,7 @@ def test_velocity_is_derivative_of_position(mixed):
     knots = np.concatenate([bounds, bounds + 1.0, bounds + 2.0, bounds + 4.0, bounds + 5.0])
     t = t[np.min(np.abs(t[:, None] - knots[None, :]), axis=1) > 3 * h]  # stencil off the knots
 
-    def r_ecef(tt):
-        lt = mixed.local_truth(tt)
-        return geodetic_to_ecef(lt.lat, lt.lon, lt.alt)
-
-    fd = (8 * (r_ecef(t + h) - r_ecef(t - h)) - (r_ecef(t + 2 * h) - r_ecef(t - 2 * h))) / (12 * h)
-    lt = mixed.local_truth(t)
-    v_e = np.einsum("nij,nj->ni", dcm_ned_to_ecef(lt.lat, lt.lon), lt.v_ned)
+    v_e, fd = velocity_and_position_derivative(mixed, t, h)
     err = np.abs(fd - v_e).max()
     assert err < 1e-6, err
     assert np.abs(v_e).max() > 100.0  # the check is not vacuous

@@ -11,19 +11,11 @@ be a rotation about the scan axis only. Bending is off here (the lever arm is co
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-import yaml
-from rosbags.rosbag2 import Reader
-from rosbags.typesys import Stores, get_typestore
+from rosbags_read import generate_edited, messages_by_stamp
 from scipy.spatial.transform import Rotation
 
-from strapdown_ros.config import load_scenario
-from strapdown_ros.generate import generate_dataset
-
-DEFAULT_SCENARIO = Path(__file__).resolve().parent.parent / "config" / "scenarios" / "default.yaml"
 LEVER_ARM = np.array([-6.0, 1.5, -0.3])  # m, Bref FRD
 DISPLACEMENT = np.array([0.2, -0.1, 0.15])  # m, Bvar FRD
 MOUNTING_RPH = np.array([10.0, -20.0, 150.0])  # deg
@@ -33,34 +25,27 @@ FLU = np.diag([1.0, -1.0, -1.0])  # FRD <-> FLU body axes
 
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("geometry")
-    doc = yaml.safe_load(DEFAULT_SCENARIO.read_text())
-    doc["variation"]["lever_arm_m"] = LEVER_ARM.tolist()
-    doc["variation"]["displacement_m"] = DISPLACEMENT.tolist()
-    doc["variation"]["mounting_rph_deg"] = MOUNTING_RPH.tolist()
-    del doc["variation"]["bending"]
-    for key in ("navigator", "imu_errors", "aiding"):
-        doc.pop(key, None)
-    doc["duration_s"] = 8.0
-    path = tmp / "geometry.yaml"
-    path.write_text(yaml.safe_dump(doc))
-    generate_dataset(load_scenario(path), tmp / "bag")
-    return tmp / "bag"
+    def fixed_offsets(doc):
+        doc["variation"]["lever_arm_m"] = LEVER_ARM.tolist()
+        doc["variation"]["displacement_m"] = DISPLACEMENT.tolist()
+        doc["variation"]["mounting_rph_deg"] = MOUNTING_RPH.tolist()
+        del doc["variation"]["bending"]
+        for key in ("navigator", "imu_errors", "aiding"):
+            doc.pop(key, None)
+        doc["duration_s"] = 8.0
+
+    return generate_edited(tmp_path_factory.mktemp("geometry"), "default", fixed_offsets)
 
 
 def _odometry(bag, topic):
-    ts = get_typestore(Stores.ROS2_JAZZY)
-    stamps, pos, rot = [], [], []
-    with Reader(bag) as reader:
-        conns = [c for c in reader.connections if c.topic == topic]
-        for conn, _, raw in reader.messages(connections=conns):
-            msg = ts.deserialize_cdr(raw, conn.msgtype)
-            stamps.append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
-            p, q = msg.pose.pose.position, msg.pose.pose.orientation
-            pos.append([p.x, p.y, p.z])
-            rot.append([q.x, q.y, q.z, q.w])
+    msgs = messages_by_stamp(bag, topic)
+    stamps = np.array(sorted(msgs))
+    pos = np.array([[msgs[t].pose.pose.position.x, msgs[t].pose.pose.position.y,
+                     msgs[t].pose.pose.position.z] for t in stamps])  # fmt: skip
+    q = [msgs[t].pose.pose.orientation for t in stamps]
+    rot = Rotation.from_quat([[o.x, o.y, o.z, o.w] for o in q])
     # C_B^E of the FRD body: the message's FLU body orientation in the Earth frame, times FLU
-    return np.array(stamps), np.array(pos), Rotation.from_quat(rot).as_matrix() @ FLU
+    return stamps, pos, rot.as_matrix() @ FLU
 
 
 def test_position_offset_is_lever_arm_plus_displacement(bag):

@@ -3,12 +3,17 @@
 A :class:`Batch` holds the CDR payloads of one topic with their stamps. The bag writer and the
 ROS nodes consume the same batches in the same :func:`merge_order`, which is how the offline
 bag and the live topics carry identical messages (docs/interface.md §6). No rosbags or rclpy here.
+
+Every stage's output is serialized by :func:`batch`, which is where outputs are checked, once
+for all: a message holding a NaN or an infinity is never serialized (so never written nor
+published), each stretch of them logged (:func:`finite_outputs`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
-from typing import NamedTuple
+import logging
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,8 +26,13 @@ from strapdown_ros.messages import (
     clock_fields,
     stream_fields,
 )
+from strapdown_ros.stages.intake import nonfinite_rows, stamp_span, stretches, without_rows
 
-__all__ = ["Batch", "batch", "clock_batch", "merge_order", "stream_batches"]
+__all__ = ["Batch", "batch", "clock_batch", "finite_outputs", "merge_order", "stream_batches"]
+
+F = TypeVar("F")
+#: Where :func:`batch` reports outputs it does not serialize when the caller gives no log.
+_LOG = logging.getLogger("strapdown_ros.outputs")
 
 
 class Batch(NamedTuple):
@@ -34,14 +44,36 @@ class Batch(NamedTuple):
     payloads: Sequence[bytes | memoryview]
 
 
-def batch(topic: str, fields: object) -> Batch:
-    """Serialize a field container (:mod:`strapdown_ros.messages`) into a :class:`Batch`."""
-    return Batch(
-        topic,
-        cdr.msgtype_of(fields),
-        np.asarray(fields.stamps_ns, dtype=np.int64),  # type: ignore[attr-defined]
-        cdr.serialize(fields),
-    )
+def finite_outputs(topic: str, fields: F, log: Callable[[str], None] | None = None
+                   ) -> tuple[F | None, NDArray[np.bool_] | None]:  # fmt: skip
+    """``fields`` without its messages holding a NaN or an infinity (None: none is left) and
+    the mask of those removed (None: none, the common case, checked in microseconds). Each
+    stretch of removed messages is logged to ``log`` (default: the ``strapdown_ros.outputs``
+    logger, error level), naming the topic and the stamps."""
+    bad = nonfinite_rows(fields)
+    if bad is None:
+        return fields, None
+    stamps = np.asarray(fields.stamps_ns, dtype=np.int64)  # type: ignore[attr-defined]
+    say = log if log is not None else _LOG.error
+    for a, b in stretches(bad):
+        say(f"{topic}: stamp {stamp_span(stamps[a : b + 1])}: a NaN or an infinity in the "
+            "output; not published nor written (a defect upstream: please report it)")  # fmt: skip
+    return without_rows(fields, bad), bad
+
+
+def batch(topic: str, fields: object, *, log_ns: ArrayLike | None = None,
+          log: Callable[[str], None] | None = None) -> Batch:  # fmt: skip
+    """Serialize a field container (:mod:`strapdown_ros.messages`) into a :class:`Batch`,
+    logged at its stamps (or at ``log_ns``), after :func:`finite_outputs` (``log``)."""
+    msgtype = cdr.msgtype_of(fields)
+    at = np.asarray(fields.stamps_ns if log_ns is None else log_ns,  # type: ignore[attr-defined]
+                    dtype=np.int64)  # fmt: skip
+    checked, bad = finite_outputs(topic, fields, log)
+    if bad is not None:
+        at = at[~bad]
+    if checked is None:
+        return Batch(topic, msgtype, at, [])
+    return Batch(topic, msgtype, at, cdr.serialize(checked))
 
 
 def stream_batches(

@@ -47,6 +47,8 @@ class IncrementalBagWriter(BagWriterBase):
         Destination bag directory; it must not exist unless ``force``.
     storage : {"mcap", "sqlite3"}
         Storage plugin.
+    compression : {"none", "zstd", "lz4"}
+        MCAP chunk compression (mcap only); each flush compresses the chunk it closes.
     force : bool
         Replace an existing bag directory (or an empty directory) at ``path``.
     custom_data : mapping of str to str, optional
@@ -85,7 +87,7 @@ class IncrementalBagWriter(BagWriterBase):
         if check_destination(p, self.force):
             shutil.rmtree(p)
         p.parent.mkdir(parents=True, exist_ok=True)
-        self._writer = open_rosbags_writer(p, self.storage, self.custom_data)
+        self._writer = open_rosbags_writer(p, self.storage, self.custom_data, self.compression)
         self._check_storage()
         self.flush()  # header (and sqlite schema) on disk before the first message
         return self

@@ -27,7 +27,9 @@ from strapdown_ros.bag.reader import BagReadError, check_bag
 
 __all__ = [
     "BagSource",
+    "ClockTicks",
     "PASS_END",
+    "PacingWatch",
     "PacingStats",
     "PlayTopic",
     "ReaderProcess",
@@ -138,16 +140,20 @@ class BagSource:
         self.start_ns = int(meta.start_time) if meta.message_count else 0
         self.end_ns = int(meta.end_time) - 1 if meta.message_count else 0
 
-    def messages(self, start_ns: int | None = None) -> Iterator[tuple[int, int, bytes]]:
-        """``(topic index, log time ns, payload)`` of the selected topics from ``start_ns`` on.
+    def messages(
+        self, start_ns: int | None = None, stop_ns: int | None = None
+    ) -> Iterator[tuple[int, int, bytes]]:
+        """``(topic index, log time ns, payload)`` of the selected topics with log times in
+        ``[start_ns, stop_ns)`` (None: from the first, to the last).
 
         Raises :class:`BagReadError` when the data turns out unreadable on the way.
         """
         if not self._conns:
             return
         index = self._index
+        messages = self._reader.messages(connections=self._conns, start=start_ns, stop=stop_ns)
         try:
-            for conn, t, data in self._reader.messages(connections=self._conns, start=start_ns):
+            for conn, t, data in messages:
                 yield index[id(conn)], t, data
         except BagReadError:
             raise
@@ -178,7 +184,8 @@ _READ_BYTES = 1 << 16
 def _reader_main(argv: list[str]) -> int:
     """Reader process: write length-prefixed pickled batches of the bag's messages to stdout.
 
-    ``argv``: ``PATH TOPICS_JSON START_NS LOOP BATCH``. A batch is a list of
+    ``argv``: ``PATH TOPICS_JSON START_NS STOP_NS LOOP BATCH`` (``STOP_NS`` empty: to the
+    end). A batch is a list of
     ``(index, t, payload)`` items (:data:`PASS_END` after each pass); an empty frame ends the
     stream; a pickled ``{"error": text}`` reports a failure.
     """
@@ -188,7 +195,7 @@ def _reader_main(argv: list[str]) -> int:
     import sys
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the player decides when to stop
-    path, topics, start, loop, batch = argv
+    path, topics, start, stop, loop, batch = argv
     out = sys.stdout.buffer
 
     def send(obj: object) -> None:
@@ -201,7 +208,7 @@ def _reader_main(argv: list[str]) -> int:
         try:
             while True:
                 items: list[object] = []
-                for item in source.messages(int(start)):
+                for item in source.messages(int(start), int(stop) if stop else None):
                     items.append(item)
                     if len(items) >= int(batch):
                         send(items)
@@ -238,6 +245,9 @@ class ReaderProcess:
         The bag and topic selection (the process opens the bag again with the same topics).
     start_ns : int, optional
         First log time to read.
+    stop_ns : int, optional
+        Log time to stop before (None: to the end of the bag); with ``loop``, each pass is
+        the window ``[start_ns, stop_ns)``.
     loop : bool
         Read the bag over and over (:data:`PASS_END` after each pass) until :meth:`close`.
     batch : int
@@ -250,6 +260,7 @@ class ReaderProcess:
         self,
         source: BagSource,
         start_ns: int | None = None,
+        stop_ns: int | None = None,
         *,
         loop: bool = False,
         batch: int = 64,
@@ -263,6 +274,7 @@ class ReaderProcess:
             str(source.path),
             json.dumps([t.topic for t in source.topics]),
             str(source.start_ns if start_ns is None else start_ns),
+            "" if stop_ns is None else str(stop_ns),
             "1" if loop else "0",
             str(batch),
         ]
@@ -382,6 +394,72 @@ class ReaderProcess:
             proc.wait(timeout=5.0)
         if proc.stdout is not None:
             proc.stdout.close()
+
+
+class ClockTicks:
+    """When the player publishes ``/clock``: before a message whose log time starts a new
+    ``period_ns`` interval of bag time counted from ``begin_ns`` (``period_ns`` 0: before
+    each new log time). The clock carries that message's log time, so a subscriber on
+    simulated time never sees a message stamped after its clock by more than one period."""
+
+    def __init__(self, period_ns: int, begin_ns: int) -> None:
+        self.period_ns = int(period_ns)
+        self.begin_ns = int(begin_ns)
+        self._last: int | None = None
+
+    def due(self, t_ns: int) -> bool:
+        """Whether ``/clock`` goes out before the message logged at ``t_ns`` (non-decreasing
+        within a pass; :meth:`restart` between loop passes)."""
+        key = t_ns if self.period_ns <= 0 else (t_ns - self.begin_ns) // self.period_ns
+        if key == self._last:
+            return False
+        self._last = key
+        return True
+
+    def restart(self, begin_ns: int) -> None:
+        """A new pass whose first log time is ``begin_ns``."""
+        self.begin_ns = int(begin_ns)
+        self._last = None
+
+
+class PacingWatch:
+    """Warnings while playing: publications later than ``threshold_s`` (publish time minus
+    scheduled time), at most one text per ``interval_s`` of wall time summing up that
+    interval (``threshold_s`` <= 0: never)."""
+
+    def __init__(self, threshold_s: float, interval_s: float = 1.0) -> None:
+        self.threshold_s = float(threshold_s)
+        self.interval_s = float(interval_s)
+        self._since: float | None = None  # wall time of the first late message not yet told
+        self._late = 0
+        self._worst = 0.0
+        self.warnings = 0  #: texts returned so far
+
+    def observe(self, error_s: float, now_s: float) -> str | None:
+        """Take one publication's pacing error (s) at wall time ``now_s`` (s); returns the
+        warning to log, if one is due."""
+        if self.threshold_s <= 0:
+            return None
+        if error_s > self.threshold_s:
+            if self._since is None:
+                self._since = now_s
+            self._late += 1
+            self._worst = max(self._worst, error_s)
+            if self.warnings == 0 or now_s - self._since >= self.interval_s:
+                return self._tell()
+        elif self._since is not None and now_s - self._since >= self.interval_s:
+            return self._tell()
+        return None
+
+    def _tell(self) -> str:
+        text = (
+            f"pacing: {self._late} message(s) published more than "
+            f"{self.threshold_s * 1e3:g} ms late (worst {self._worst * 1e3:.1f} ms); the "
+            "machine is loaded (docs/recording.md: realtime_priority)"
+        )
+        self._since, self._late, self._worst = None, 0, 0.0
+        self.warnings += 1
+        return text
 
 
 def clock_payload(stamp_ns: int) -> bytes:

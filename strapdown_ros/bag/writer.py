@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from rosbags.interfaces import Connection, Qos
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from strapdown_ros.bag.batches import Batch, batch, clock_batch, merge_order, stream_batches
@@ -33,6 +33,7 @@ from strapdown_ros.core.stream import Stream
 
 __all__ = [
     "BAG_VERSION",
+    "COMPRESSIONS",
     "DEFAULT_QOS",
     "STORAGES",
     "TYPESTORE",
@@ -41,6 +42,7 @@ __all__ = [
     "BagWriterBase",
     "BagWriteError",
     "batch",
+    "check_compression",
     "check_destination",
     "clock_batch",
     "looks_like_bag",
@@ -53,6 +55,9 @@ __all__ = [
 BAG_VERSION = 9
 #: Storage identifiers accepted by :class:`BagWriter` (``mcap`` is Jazzy's default).
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+#: MCAP chunk compressions (``none``, rosbag2's ``zstd_fast``/``zstd_small`` presets' zstd,
+#: and lz4); a bag's ``metadata.yaml`` says ``compression_mode: ''`` either way, as rosbag2's.
+COMPRESSIONS = ("none", "zstd", "lz4")
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 #: The ROS 2 Jazzy type store of ``rosbags`` (message definitions, type hashes).
@@ -89,18 +94,56 @@ def check_destination(path: Path, force: bool) -> bool:
     return True
 
 
-def open_rosbags_writer(path: Path, storage: str, custom_data: Mapping[str, str]) -> Writer:
-    """An open ``rosbags`` writer of a new bag at ``path`` with ``custom_data`` in its metadata.
+def check_compression(storage: str, compression: str) -> None:
+    """:class:`BagWriteError` unless ``compression`` is one of :data:`COMPRESSIONS` that
+    ``storage`` can do (chunk compression is MCAP's: sqlite3 takes ``none`` only)."""
+    if compression not in COMPRESSIONS:
+        raise BagWriteError(
+            f"unknown compression {compression!r}; choose one of {', '.join(COMPRESSIONS)}"
+        )
+    if compression != "none" and storage != "mcap":
+        raise BagWriteError(f"{compression} chunk compression needs storage mcap, not {storage}")
+
+
+def _lz4_chunks(writer: Writer) -> None:
+    """Make the open ``rosbags`` MCAP storage compress its chunks with LZ4 (frame format, as
+    the MCAP specification and rosbag2 write it); ``rosbags`` 0.11 writes zstd or nothing."""
+    import lz4.frame
+
+    storage = writer.storage
+    if not (hasattr(storage, "compression") and hasattr(storage, "compressor")):
+        raise BagWriteError(
+            "the installed rosbags mcap writer has no chunk compressor to set; lz4 needs "
+            "rosbags 0.11 (requirements/constraints.txt)"
+        )
+    storage.compression = "lz4"  # type: ignore[union-attr]
+    storage.compressor = lz4.frame.compress  # type: ignore[union-attr]
+
+
+def open_rosbags_writer(
+    path: Path, storage: str, custom_data: Mapping[str, str], compression: str = "none"
+) -> Writer:
+    """An open ``rosbags`` writer of a new bag at ``path`` with ``custom_data`` in its metadata
+    and its MCAP chunks compressed with ``compression`` (:data:`COMPRESSIONS`).
 
     Raises :class:`BagWriteError` when the bag cannot be created.
     """
+    check_compression(storage, compression)
     writer = Writer(path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+    if compression == "zstd":  # chunk compression of the storage plugin (metadata: none)
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
     for key, value in custom_data.items():
         writer.set_custom_data(key, value)
     try:
         writer.open()
     except Exception as exc:  # rosbags WriterError, OSError
         raise BagWriteError(f"cannot create bag {path}: {exc}") from exc
+    if compression == "lz4":
+        try:
+            _lz4_chunks(writer)
+        except BaseException:
+            writer.abort()
+            raise
     return writer
 
 
@@ -121,14 +164,17 @@ class BagWriterBase:
         path: str | os.PathLike[str],
         *,
         storage: str = "mcap",
+        compression: str = "none",
         force: bool = False,
         custom_data: Mapping[str, str] | None = None,
         qos: Qos = DEFAULT_QOS,
     ) -> None:
         if storage not in STORAGES:
             raise BagWriteError(f"unknown storage {storage!r}; choose one of {sorted(STORAGES)}")
+        check_compression(storage, compression)
         self.path = Path(path).absolute()
         self.storage = storage
+        self.compression = compression
         self.force = force
         self.custom_data = dict(custom_data or {"generator": "strapdown_ros"})
         self.qos = qos
@@ -199,6 +245,8 @@ class BagWriter(BagWriterBase):
         Destination bag directory.
     storage : {"mcap", "sqlite3"}
         Storage plugin (``mcap`` is Jazzy's default).
+    compression : {"none", "zstd", "lz4"}
+        MCAP chunk compression (mcap storage only).
     force : bool
         Replace an existing destination. Only a bag directory (``metadata.yaml``, ``*.mcap`` or
         ``*.db3`` inside) or an empty directory is replaced; anything else is refused. The old
@@ -240,7 +288,7 @@ class BagWriter(BagWriterBase):
         )
         try:
             writer = open_rosbags_writer(
-                self._tmpdir / self.path.name, self.storage, self.custom_data
+                self._tmpdir / self.path.name, self.storage, self.custom_data, self.compression
             )
         except BaseException:
             self._cleanup()

@@ -16,10 +16,11 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
+from strapdown_ros.campaign.engine import TlsFiles
 from strapdown_ros.campaign.runs import Campaign
 from strapdown_ros.campaign.vary import parse_vary
 
-__all__ = ["CampaignResult", "run_campaign"]
+__all__ = ["CampaignMismatchError", "CampaignResult", "run_campaign"]
 
 
 @dataclass
@@ -66,10 +67,19 @@ def _versions() -> dict[str, str]:
     return out
 
 
+class CampaignMismatchError(FileExistsError):
+    """The campaign directory holds runs computed from other inputs than this invocation's."""
+
+
 def _write_info(campaign: Campaign, out: Path, runs: int, vary: list[str]) -> None:
+    """Write ``campaign.json``; refuse (:class:`CampaignMismatchError`) when ``out`` already holds
+    finished runs computed from other inputs (:meth:`Campaign.inputs_digest`)."""
+    from strapdown_ros.campaign.results import finished_runs
+
     info = {
         "scenario": str(campaign.scenario_path),
         "scenario_name": campaign.base.name,
+        "inputs_sha256": campaign.inputs_digest(),
         "runs": runs,
         "seed": campaign.seed,
         "common": campaign.common,
@@ -79,15 +89,31 @@ def _write_info(campaign: Campaign, out: Path, runs: int, vary: list[str]) -> No
         "versions": _versions(),
     }
     path = out / "campaign.json"
-    if path.exists():
+    done = finished_runs(out)
+    if path.exists() and done:
         old = json.loads(path.read_text())
-        same = {k: old.get(k) for k in ("scenario", "seed", "common", "vary")}
-        if same != {k: info[k] for k in same}:
-            raise FileExistsError(
-                f"{out} holds a different campaign ({old.get('scenario')}, seed {old.get('seed')},"
-                f" overrides {old.get('common')}, vary {old.get('vary')}); use another --out"
-            )
+        if old.get("inputs_sha256") != info["inputs_sha256"]:
+            raise CampaignMismatchError(_mismatch(out, old, info, len(done)))
     path.write_text(json.dumps(info, indent=1))
+
+
+def _mismatch(out: Path, old: dict, new: dict, finished: int) -> str:
+    """Why ``out`` cannot be resumed with ``new``: what differs from ``old`` (campaign.json)."""
+    if "inputs_sha256" not in old:
+        why = "it was made by a version that did not record what its runs were computed from"
+    else:
+        changed = [k for k in ("scenario", "seed", "common", "vary") if old.get(k) != new[k]]
+        why = (
+            "its runs were computed from other inputs ("
+            + (", ".join(f"{k}: {old.get(k)!r} -> {new[k]!r}" for k in changed)
+            if changed else f"the content of {new['scenario']} changed since")
+            + ")"
+        )  # fmt: skip
+    return (
+        f"{out} holds {finished} finished run(s) that this invocation would mix with its own: "
+        f"{why}; results of different scenarios in one table are wrong. Use another --out, or "
+        "restore the scenario, --set, --vary and --seed the directory was made with"
+    )
 
 
 def run_campaign(
@@ -102,12 +128,18 @@ def run_campaign(
     bags: bool = False,
     scheduler: str | None = None,
     workers: int | None = None,
+    dashboard: str | None = None,
+    tls: TlsFiles | None = None,
     log=print,
 ) -> CampaignResult:
     """Run (or complete) a campaign of ``runs`` realizations into ``out``.
 
-    Finished runs in ``out`` (from an interrupted invocation with the same scenario, overrides,
-    varied keys and seed) are kept and not run again.
+    Finished runs in ``out`` (from an interrupted invocation computed from the same inputs: the
+    same resolved scenario, overrides, varied keys and seed, :meth:`Campaign.inputs_digest`)
+    are kept and not run again; runs computed from other inputs are refused
+    (:class:`CampaignMismatchError`), never mixed. ``dashboard``: the embedded cluster's
+    dashboard address (default loopback); ``tls``: certificates for a ``tls://`` scheduler
+    (default: Dask's configuration).
     """
     from strapdown_ros.campaign.compute import run_one, shared_inputs
     from strapdown_ros.campaign.engine import dask_client, run_tasks
@@ -132,7 +164,8 @@ def run_campaign(
         t = time.perf_counter()
         shared = shared_inputs(campaign)
         result.shared_s = time.perf_counter() - t
-        with dask_client(scheduler, workers) as client:
+        where = {"dashboard": dashboard} if dashboard else {}
+        with dask_client(scheduler, workers, tls=tls, **where) as client:
 
             def store(k: int, value: object) -> None:
                 write_run(out, value)  # type: ignore[arg-type]

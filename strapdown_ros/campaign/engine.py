@@ -6,18 +6,64 @@ arrives (:mod:`strapdown_ros.campaign.results`). A run's result is complete only
 ``summary.json`` exists (written last, atomically), so an interrupted campaign (Ctrl-C, a killed
 worker or client) loses nothing finished: the next invocation with the same ``--out`` runs only
 the missing runs. A run that raises is reported with its index and error; the others finish.
+
+Nothing listens beyond loopback unless asked: the embedded cluster's scheduler, workers and
+dashboard bind 127.0.0.1 (``dashboard`` to expose the dashboard). An existing scheduler is
+reached with Dask's TLS security when certificates are given (:func:`tls_security`) or set in
+Dask's configuration (``distributed.comm.tls``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["EngineResult", "dask_client", "run_tasks"]
+__all__ = ["DASHBOARD", "EngineResult", "TlsFiles", "dask_client", "run_tasks", "tls_security"]
+
+#: Default dashboard address of the embedded cluster: loopback, a free port.
+DASHBOARD = "127.0.0.1:0"
+#: Imported by every worker of the embedded cluster: it ignores the terminal's SIGINT.
+WORKER_PRELOAD = "strapdown_ros.campaign.worker_setup"
+
+
+@dataclass(frozen=True)
+class TlsFiles:
+    """PEM files of Dask's TLS security: the CA that signed the scheduler's and the workers'
+    certificates, and this client's certificate and key (``key`` None: inside ``cert``)."""
+
+    ca: str
+    cert: str
+    key: str | None = None
+
+
+def tls_security(tls: TlsFiles | None, scheduler: str) -> Any:
+    """The ``distributed.Security`` to reach ``scheduler``: from ``tls`` (encryption
+    required), else Dask's configuration (``distributed.comm.tls.*``; None: plain TCP)."""
+    from distributed.security import Security
+
+    if tls is None:
+        security = Security()
+        if scheduler.startswith("tls://") and not security.tls_ca_file:
+            raise ValueError(
+                f"--scheduler {scheduler}: a tls:// scheduler needs certificates: "
+                "--tls-ca-file, --tls-cert (and --tls-key), or distributed.comm.tls.ca-file, "
+                "...client.cert, ...client.key in Dask's configuration"
+            )
+        return security
+    if not scheduler.startswith("tls://"):
+        raise ValueError(
+            f"--scheduler {scheduler}: TLS certificates are given, the address must be tls://"
+        )
+    for what, path in (("--tls-ca-file", tls.ca), ("--tls-cert", tls.cert), ("--tls-key", tls.key)):
+        if path is not None and not os.path.isfile(path):
+            raise ValueError(f"{what} {path}: no such file")
+    return Security(tls_ca_file=tls.ca, tls_client_cert=tls.cert, tls_client_key=tls.key,
+                    require_encryption=True)  # fmt: skip
 
 
 @dataclass
@@ -32,28 +78,41 @@ class EngineResult:
 
 
 @contextlib.contextmanager
-def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
-    """A ``distributed.Client``: on ``scheduler`` (``tcp://host:port``) or on an embedded
-    ``LocalCluster`` with ``workers`` single-threaded worker processes (default: one per core).
+def dask_client(
+    scheduler: str | None,
+    workers: int | None,
+    *,
+    dashboard: str = DASHBOARD,
+    tls: TlsFiles | None = None,
+) -> Iterator[Any]:
+    """A ``distributed.Client``: on ``scheduler`` (``tcp://host:port``, ``tls://`` with
+    :func:`tls_security`) or on an embedded ``LocalCluster`` on loopback with ``workers``
+    single-threaded worker processes (default: one per core) and its dashboard at
+    ``dashboard`` (``host:port``; served only where bokeh is installed).
     """
     import dask
     from distributed import Client, LocalCluster
 
-    # Quiet, deterministic workers: no work stealing of finished keys, no spill to disk.
-    with dask.config.set({"distributed.worker.daemon": False, "logging.distributed": "error"}):
+    # Quiet, deterministic workers: no work stealing of finished keys, no spill to disk. Only
+    # critical log lines: a run's error reaches the user through its future (run_tasks), and
+    # workers stopped with the cluster (Ctrl-C) would log the lost scheduler as errors.
+    settings = {"distributed.worker.daemon": False, "logging.distributed": "critical"}
+    if not scheduler:
+        preload = list(dask.config.get("distributed.worker.preload", []) or [])
+        settings["distributed.worker.preload"] = [*preload, WORKER_PRELOAD]
+    with dask.config.set(settings):
         if scheduler:
-            client = Client(scheduler, timeout="30s")
+            client = Client(scheduler, timeout="30s", security=tls_security(tls, scheduler))
             cluster = None
         else:
-            import os
-
             n = workers or os.cpu_count() or 1
             cluster = LocalCluster(
                 n_workers=n,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=":0",
-                silence_logs=40,
+                host="127.0.0.1",
+                dashboard_address=dashboard,
+                silence_logs=50,
             )
             client = Client(cluster)
         try:

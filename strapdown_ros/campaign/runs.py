@@ -14,6 +14,8 @@ run's overrides computes the very same streams (docs/campaigns.md).
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -125,6 +127,42 @@ class Campaign:
         if sections <= {*PER_RUN_SECTIONS, "variation"}:
             return "reference"
         return "none"
+
+    # -- what the runs are computed from -------------------------------------------------------
+
+    def inputs_digest(self) -> str:
+        """SHA-256 (hex) of everything a run's numbers depend on: the resolved scenario (the
+        validated model, defaults filled in, after ``--set`` and ``--duration``), the
+        campaign seed, the seeded keys, the ``--vary`` specifications and the content of the
+        trajectory's sample file or bag. Two invocations with the same digest compute the
+        same run k; a resumed campaign must have its digest (:func:`run_campaign`)."""
+        content = {
+            "scenario": self.base.model_dump(mode="json"),
+            "common": self.common,
+            "seed": self.seed,
+            "seed_keys": self.seed_keys,
+            "vary": [v.text for v in self.varies],
+        }
+        h = hashlib.sha256(json.dumps(content, sort_keys=True, default=str).encode())
+        for path in self._input_files():
+            h.update(path.name.encode())
+            with open(path, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
+        return h.hexdigest()
+
+    def _input_files(self) -> list[Path]:
+        """Files the trajectory is fitted to (``kind: samples``), in a fixed order."""
+        spec = self.base.trajectory
+        name = getattr(spec, "file", None) or getattr(spec, "bag", None)
+        if getattr(spec, "kind", None) != "samples" or not name:
+            return []
+        path = Path(name)
+        if not path.is_absolute():
+            path = self.scenario_path.parent / path
+        if path.is_dir():
+            return sorted(p for p in path.rglob("*") if p.is_file())
+        return [path] if path.is_file() else []
 
     # -- runs ----------------------------------------------------------------------------------
 

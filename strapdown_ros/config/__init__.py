@@ -5,30 +5,7 @@ returns a validated :class:`Scenario`; everything downstream takes typed objects
 documented in docs/scenarios.md.
 """
 
-from strapdown_ros.config.scenario import (
-    DEFAULT_FRAMES,
-    DEFAULT_TOPICS,
-    Initial,
-    Recording,
-    Scenario,
-    ScenarioError,
-    apply_overrides,
-    load_scenario,
-    navigator_spec,
-    parse_scenario,
-    tf_spec,
-)
+from strapdown_ros.config import scenario
+from strapdown_ros.config.scenario import *  # noqa: F403
 
-__all__ = [
-    "DEFAULT_FRAMES",
-    "DEFAULT_TOPICS",
-    "Initial",
-    "Recording",
-    "Scenario",
-    "ScenarioError",
-    "apply_overrides",
-    "load_scenario",
-    "navigator_spec",
-    "parse_scenario",
-    "tf_spec",
-]
+__all__ = list(scenario.__all__)

@@ -8,10 +8,9 @@ model (:mod:`strapdown_ros.core.aiding`). Keys, models and presets: docs/aiding.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BeforeValidator, Field, field_validator, model_validator
@@ -21,12 +20,14 @@ from strapdown_ros.config.base import (
     Model,
     NonNegative,
     Positive,
+    PresetModel,
     ScenarioError,
     StrictBool,
     StrictInt,
     Vector3,
+    finite_number,
+    require_correlation_times,
     shorten,
-    with_preset,
 )
 
 if TYPE_CHECKING:  # imported by errors(): the core models load scipy.signal
@@ -70,14 +71,6 @@ Matrix3 = tuple[Axes, Axes, Axes]
 # Value shapes
 
 
-def _finite(value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
-    if not math.isfinite(value):
-        raise ValueError(f"must be finite, got {shorten(value)}")
-    return float(value)
-
-
 def _axes(sign: str) -> Any:
     """A number (all three axes) or a list of 3; ``sign`` "any", "nonneg" or "positive"."""
 
@@ -87,9 +80,9 @@ def _axes(sign: str) -> Any:
         if isinstance(value, list | tuple):
             if len(value) != 3:
                 raise ValueError(f"must be a number or a list of 3 numbers, got {shorten(value)}")
-            out = tuple(_finite(v) for v in value)
+            out = tuple(finite_number(v) for v in value)
         else:
-            out = (_finite(value),) * 3
+            out = (finite_number(value),) * 3
         if sign == "nonneg" and min(out) < 0:
             raise ValueError(f"must be >= 0, got {shorten(value)}")
         if sign == "positive" and min(out) <= 0:
@@ -108,7 +101,7 @@ def _matrix(value: Any) -> Matrix3 | None:
     for row in value:
         if not isinstance(row, list | tuple) or len(row) != 3:
             raise ValueError(f"must be a 3x3 matrix (3 lists of 3 numbers), got {shorten(value)}")
-        rows.append(tuple(_finite(v) for v in row))
+        rows.append(tuple(finite_number(v) for v in row))
     return tuple(rows)  # type: ignore[return-value]
 
 
@@ -133,8 +126,11 @@ def _arr(value: Axes | None, default: float = 0.0) -> np.ndarray:
     return np.full(3, default) if value is None else np.array(value, dtype=np.float64)
 
 
-class _Sensor(Model):
-    """Keys every sensor has."""
+class _Sensor(PresetModel):
+    """Keys every sensor has; ``GM_TERMS``: the ``(sigma_key, tau_key)`` of its Gauss-Markov
+    error terms (a σ > 0 needs its correlation time)."""
+
+    GM_TERMS: ClassVar[tuple[tuple[str, str], ...]] = ()
 
     enabled: StrictBool = True
     rate_hz: Rate
@@ -150,17 +146,15 @@ class _Sensor(Model):
             )
         return rate
 
+    @model_validator(mode="after")
+    def _correlation_times(self) -> _Sensor:
+        require_correlation_times(self, self.GM_TERMS)
+        return self
+
     @property
     def period_ns(self) -> int:
         """Epoch period P (ns)."""
         return int(round(1e9 / self.rate_hz))
-
-
-def _gm_tau_required(spec: Model, pairs: tuple[tuple[str, str], ...]) -> None:
-    for sigma_key, tau_key in pairs:
-        sigma = getattr(spec, sigma_key)
-        if sigma is not None and max(np.atleast_1d(sigma)) > 0 and getattr(spec, tau_key) is None:
-            raise ScenarioError(tau_key, f"is required when {sigma_key} is > 0")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -205,7 +199,7 @@ GNSS_PRESETS: dict[str, dict[str, Any]] = {
 
 def _outage(value: Any) -> Any:
     if isinstance(value, list | tuple) and len(value) == 2:
-        start, end = (_finite(v) for v in value)
+        start, end = (finite_number(v) for v in value)
         if start < 0:
             raise ValueError(f"the start must be >= 0 s, got {shorten(start)}")
         if not end > start:
@@ -225,6 +219,12 @@ class GnssSpec(_Sensor):
     ``latency_s``: publication (and bag log) time after the measurement time (the stamp).
     """
 
+    PRESETS = GNSS_PRESETS
+    GM_TERMS = (
+        ("position_gm_sigma_m", "position_gm_tau_s"),
+        ("velocity_gm_sigma_mps", "velocity_gm_tau_s"),
+    )
+
     rate_hz: Rate = 1.0
     lever_arm_m: Vector3 = (0.0, 0.0, 0.0)
     preset: Literal["spp", "sbas", "rtk"] | None = None
@@ -243,22 +243,6 @@ class GnssSpec(_Sensor):
     velocity_gm_sigma_mps: AxesNonNeg = None
     velocity_gm_tau_s: AxesPositive = None
     velocity_offset_mps: AxesAny = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _apply_preset(cls, data: Any) -> Any:
-        return with_preset(GNSS_PRESETS, data)
-
-    @model_validator(mode="after")
-    def _taus(self) -> GnssSpec:
-        _gm_tau_required(
-            self,
-            (
-                ("position_gm_sigma_m", "position_gm_tau_s"),
-                ("velocity_gm_sigma_mps", "velocity_gm_tau_s"),
-            ),
-        )
-        return self
 
     def errors(self) -> GnssErrors:
         """The core model's parameters (SI, NED)."""
@@ -323,6 +307,9 @@ BAROMETER_PRESETS: dict[str, dict[str, Any]] = {
 class BarometerSpec(_Sensor):
     """``aiding.barometer``: static pressure (FluidPressure) at the sensor's altitude."""
 
+    PRESETS = BAROMETER_PRESETS
+    GM_TERMS = (("drift_sigma_pa", "drift_correlation_time_s"),)
+
     rate_hz: Rate = 25.0
     lever_arm_m: Vector3 = (0.0, 0.0, 0.0)
     preset: Literal["mems", "precision"] | None = None
@@ -333,16 +320,6 @@ class BarometerSpec(_Sensor):
     drift_correlation_time_s: Positive | None = None
     noise_sigma_pa: NonNegative | None = None
     quantum_pa: NonNegative | None = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _apply_preset(cls, data: Any) -> Any:
-        return with_preset(BAROMETER_PRESETS, data)
-
-    @model_validator(mode="after")
-    def _taus(self) -> BarometerSpec:
-        _gm_tau_required(self, (("drift_sigma_pa", "drift_correlation_time_s"),))
-        return self
 
     def errors(self) -> BaroErrors:
         """The core model's parameters (Pa, s)."""
@@ -381,6 +358,8 @@ class MagnetometerSpec(_Sensor):
     ``decimal_year`` None: the year of ``start_time_s`` (held over the run).
     """
 
+    PRESETS = MAGNETOMETER_PRESETS
+
     rate_hz: Rate = 50.0
     preset: Literal["mems", "fluxgate"] | None = None
     model: Literal["igrf14"] = "igrf14"
@@ -391,15 +370,10 @@ class MagnetometerSpec(_Sensor):
     soft_iron: Matrix = None
     noise_sigma_ut: AxesNonNeg = None
 
-    @model_validator(mode="before")
-    @classmethod
-    def _apply_preset(cls, data: Any) -> Any:
-        return with_preset(MAGNETOMETER_PRESETS, data)
-
     @field_validator("decimal_year", mode="before")
     @classmethod
     def _year(cls, value: Any) -> Any:
-        return None if value is None else _finite(value)
+        return None if value is None else finite_number(value)
 
     def errors(self) -> MagnetometerErrors:
         """The core model's parameters (tesla, FRD)."""
@@ -452,6 +426,8 @@ class WheelOdometerSpec(_Sensor):
     which it reports as 0 (the non-holonomic constraint).
     """
 
+    PRESETS = WHEEL_ODOMETER_PRESETS
+
     rate_hz: Rate = 50.0
     lever_arm_m: Vector3 = (0.0, 0.0, 0.0)
     preset: Literal["abs_sensor", "encoder"] | None = None
@@ -461,11 +437,6 @@ class WheelOdometerSpec(_Sensor):
     scale_factor_sigma_ppm: NonNegative | None = None
     noise_sigma_mps: NonNegative | None = None
     pulses_per_m: NonNegative | None = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _apply_preset(cls, data: Any) -> Any:
-        return with_preset(WHEEL_ODOMETER_PRESETS, data)
 
     def errors(self) -> OdometerErrors:
         """The core model's parameters (dimensionless, m/s, pulses/m)."""

@@ -12,11 +12,13 @@ YAML aliases make it huge) gives a message of a line, not of megabytes.
 from __future__ import annotations
 
 import difflib
+import math
 import types
 import typing
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, ClassVar, Literal, Union
 
+import numpy as np
 from pydantic import (
     BaseModel,
     BeforeValidator,
@@ -24,19 +26,24 @@ from pydantic import (
     Field,
     Strict,
     ValidationError,
+    model_validator,
 )
 
 __all__ = [
     "Finite",
     "Model",
     "NonNegative",
+    "NullIsDefault",
     "Positive",
+    "PresetModel",
     "ScenarioError",
     "StrictBool",
     "StrictInt",
     "Vector3",
     "error_from_validation",
+    "finite_number",
     "join_key",
+    "require_correlation_times",
     "shorten",
     "with_preset",
 ]
@@ -131,6 +138,16 @@ StrictInt = Annotated[int, Strict()]
 StrictBool = Annotated[bool, Strict()]
 
 
+def finite_number(value: Any) -> float:
+    """``value`` as a float: an int or float, not a boolean, not NaN or ±inf (a plain-function
+    check for values inside lists, where the field types above do not reach)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
+    if not math.isfinite(value):
+        raise ValueError(f"must be finite, got {shorten(value)}")
+    return float(value)
+
+
 def _length(n: int) -> Any:
     def check(value: Any) -> Any:
         if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
@@ -171,6 +188,38 @@ class Model(BaseModel):
     """Base of every scenario section: unknown keys rejected, frozen once validated."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=False)
+
+
+class NullIsDefault(Model):
+    """A section whose ``null`` values mean "the default" (the key as if left out)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _null_is_default(cls, data: Any) -> Any:
+        if isinstance(data, Mapping):
+            return {k: v for k, v in data.items() if v is not None}
+        return data
+
+
+def require_correlation_times(spec: Model, pairs: tuple[tuple[str, str], ...]) -> None:
+    """A Gauss-Markov term needs its correlation time: for each ``(sigma_key, tau_key)``, the
+    ``tau_key`` is required when any axis of ``sigma_key`` is > 0."""
+    for sigma_key, tau_key in pairs:
+        sigma = getattr(spec, sigma_key)
+        if sigma is not None and max(np.atleast_1d(sigma)) > 0 and getattr(spec, tau_key) is None:
+            raise ScenarioError(tau_key, f"is required when {sigma_key} is > 0")
+
+
+class PresetModel(Model):
+    """A section with a ``preset`` key: the preset's values fill the keys not given
+    (:func:`with_preset`); a subclass names its table in ``PRESETS``."""
+
+    PRESETS: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
+
+    @model_validator(mode="before")
+    @classmethod
+    def _apply_preset(cls, data: Any) -> Any:
+        return with_preset(cls.PRESETS, data)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -15,7 +15,14 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 import numpy as np
 from pydantic import BeforeValidator, field_validator, model_validator
 
-from strapdown_ros.config.base import Model, ScenarioError, StrictInt, shorten, with_preset
+from strapdown_ros.config.base import (
+    PresetModel,
+    ScenarioError,
+    StrictInt,
+    finite_number,
+    require_correlation_times,
+    shorten,
+)
 
 if TYPE_CHECKING:  # imported by parameters(): the core model loads scipy.signal
     from strapdown_ros.core.imu_errors import ImuErrorParameters
@@ -189,12 +196,10 @@ Sign = Literal["any", "nonneg", "positive"]
 
 
 def _number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(key, f"must be a number, got {type(value).__name__} {shorten(value)}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ScenarioError(key, f"must be finite, got {value}")
-    return value
+    try:
+        return finite_number(value)
+    except ValueError as exc:
+        raise ScenarioError(key, str(exc)) from None
 
 
 def _numbers(value: Any, key: str = "") -> Any:
@@ -306,7 +311,7 @@ def _topic(value: Any) -> Any:
     return value
 
 
-class ImuErrorsSpec(Model):
+class ImuErrorsSpec(PresetModel):
     """The ``imu_errors`` section, in the units of its keys, body FRD sensor axes.
 
     A ``preset`` supplies every sensor key not given (a key given as ``null`` counts as not
@@ -315,6 +320,8 @@ class ImuErrorsSpec(Model):
     not set (zero; for a correlation time: unused). ``input_topic`` / ``output_topic`` None:
     the ``recording.topics`` defaults (:meth:`topics`).
     """
+
+    PRESETS = PRESETS  # the module's table, by grade
 
     preset: Literal["consumer_mems", "industrial", "tactical", "navigation"] | None = None
     seed: StrictInt = 0
@@ -348,12 +355,6 @@ class ImuErrorsSpec(Model):
     accel_quantum_mps: AxesNonNeg = None
     accel_range_g: AxesNonNeg = None
 
-    @model_validator(mode="before")
-    @classmethod
-    def _apply_preset(cls, data: Any) -> Any:
-        """The preset's values for the sensor keys not given (or given as null)."""
-        return with_preset(PRESETS, data)
-
     @field_validator("seed", mode="before")
     @classmethod
     def _seed(cls, value: Any) -> Any:
@@ -363,14 +364,13 @@ class ImuErrorsSpec(Model):
 
     @model_validator(mode="after")
     def _correlation_times(self) -> ImuErrorsSpec:
-        for sensor, unit in (("gyro", "dph"), ("accel", "mg")):
-            instability = getattr(self, f"{sensor}_bias_instability_{unit}")
-            if instability is not None and any(b > 0 for b in instability):
-                if getattr(self, f"{sensor}_correlation_time_s") is None:
-                    raise ScenarioError(
-                        f"{sensor}_correlation_time_s",
-                        f"is required when {sensor}_bias_instability is > 0",
-                    )
+        require_correlation_times(
+            self,
+            (
+                ("gyro_bias_instability_dph", "gyro_correlation_time_s"),
+                ("accel_bias_instability_mg", "accel_correlation_time_s"),
+            ),
+        )
         return self
 
     # -- derived -----------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from pydantic import Field, field_validator, model_validator
 from strapdown_ros.config.base import (
     Model,
     NonNegative,
+    NullIsDefault,
     ScenarioError,
     StrictBool,
     StrictInt,
@@ -53,18 +54,7 @@ OUTPUT_TOPICS: dict[str, str] = {
 }
 
 
-class _Section(Model):
-    """A mapping whose ``null`` values mean "the default" (as the old reader had it)."""
-
-    @model_validator(mode="before")
-    @classmethod
-    def _null_is_default(cls, data: Any) -> Any:
-        if isinstance(data, Mapping):
-            return {k: v for k, v in data.items() if v is not None}
-        return data
-
-
-class InitialErrors(_Section):
+class InitialErrors(NullIsDefault):
     """Errors added to the initial state: position NED (m) and velocity NED (m/s) in the true
     local level, attitude offsets of roll, pitch and heading (deg)."""
 
@@ -73,7 +63,7 @@ class InitialErrors(_Section):
     attitude_rph_deg: Vector3 = (0.0, 0.0, 0.0)
 
 
-class VerticalDampingSpec(_Section):
+class VerticalDampingSpec(NullIsDefault):
     """Vertical-channel damping gains (paper mode): ``k1`` (1/s), ``k2`` (1/s²), and Table 1's
     printed signs (docs/navigator.md)."""
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -19,6 +20,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
+from strapdown_ros.config.aided import AidedSpec, check_aided
 from strapdown_ros.config.aiding import AidingSpec, check_aiding
 from strapdown_ros.config.base import (
     Model,
@@ -33,7 +35,8 @@ from strapdown_ros.config.base import (
 from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
 from strapdown_ros.config.initial import Initial
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resolve_navigator
-from strapdown_ros.config.tf import TFSpec, check_tf
+from strapdown_ros.config.tf import TFSpec, check_tf, sensor_frames
+from strapdown_ros.config.timing import TimingSpec, check_timing
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
 from strapdown_ros.config.variation import VariationSpec, check_variation
 from strapdown_ros.config.yaml_limits import (
@@ -112,15 +115,54 @@ def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]
     return out
 
 
+def _patterns(value: Any) -> list[str] | None:
+    """A list of topic patterns (regular expressions matched against whole topic names)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value:
+        raise ValueError(f"must be a non-empty list of topic patterns, got {shorten(value)}")
+    for i, pattern in enumerate(value):
+        if not isinstance(pattern, str) or not pattern:
+            raise ScenarioError(str(i), f"must be a topic name or pattern, got {shorten(pattern)}")
+        try:
+            re.compile(pattern)
+        except re.error as exc:
+            raise ScenarioError(str(i), f"{pattern!r} is not a regular expression: {exc}") from None
+    return list(value)
+
+
 class Recording(Model):
-    """Bag output: storage plugin, topic names and frame ids by stream key, ``/clock``."""
+    """Bag output: storage plugin, MCAP chunk compression, topic names and frame ids by stream
+    key, ``/clock``, and which topics are written (``include``/``exclude``: regular
+    expressions each matching whole topic names; docs/recording.md)."""
 
     storage: Literal["mcap", "sqlite3"] = "mcap"
+    #: MCAP chunk compression (rosbag2's mcap storage presets compress chunks the same way)
+    compression: Literal["none", "zstd", "lz4"] = "none"
     topics: dict[str, str] = Field(default_factory=lambda: dict(DEFAULT_TOPICS))
     frames: dict[str, str] = Field(default_factory=lambda: dict(DEFAULT_FRAMES))
     clock: StrictBool = False
     #: Δv / Δq topics beside each Imu topic (docs/interface.md §4)
     increments: StrictBool = False
+    #: topics written: those matching a pattern of ``include`` (None: all) and none of ``exclude``
+    include: list[str] | None = None
+    exclude: list[str] | None = None
+
+    @field_validator("include", "exclude", mode="before")
+    @classmethod
+    def _selection(cls, value: Any) -> list[str] | None:
+        return _patterns(value)
+
+    @model_validator(mode="after")
+    def _compression_storage(self) -> Recording:
+        if self.compression != "none" and self.storage != "mcap":
+            raise ScenarioError(
+                "compression",
+                f"{self.compression} chunk compression needs storage mcap, got {self.storage}",
+            )
+        return self
 
     @field_validator("topics", mode="before")
     @classmethod
@@ -162,6 +204,8 @@ class Scenario(Model):
     imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
     tf: TFSpec | None = None  # SECTION tf (config/tf.py): TF, map datum, map odometry
     aiding: AidingSpec | None = None  # SECTION aiding
+    timing: TimingSpec | None = None  # SECTION timing (config/timing.py): sensor timing errors
+    aided: AidedSpec | None = None  # SECTION aided (config/aided.py): the aided INS
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -256,14 +300,25 @@ class Scenario(Model):
             start_time_ns=self.start_time_ns,
             topics=topics,
         )
+        check_aided(
+            self.aided,
+            topics=topics,
+            measured=None if self.imu_errors is None else self.imu_errors.topics(topics),
+            aiding=self.aiding,
+            period_ns=self.period_ns,
+        )
         navigator = navigator_spec(self)
         check_navigator(navigator, topics, self.sections())
         check_variation(self.variation, self.rate_hz)
+        frames = self.recording.frames
         check_tf(
             tf_spec(self),
             self.period_ns,
             None if navigator is None else self.period_ns * navigator.n,
+            sensor_frames(self.aiding, frames["reference_imu"]),
+            frames,
         )
+        check_timing(self.timing, set(self.aiding.sensors()) if self.aiding is not None else set())
         return self
 
     def sections(self) -> frozenset[str]:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BeforeValidator, Field, PlainValidator, field_validator, model_validator
@@ -27,6 +27,7 @@ from strapdown_ros.config.base import (
     Positive,
     ScenarioError,
     Vector3,
+    finite_number,
     join_key,
     shorten,
 )
@@ -86,10 +87,33 @@ def _not_null(value: Any) -> Any:
     return value
 
 
-def _non_empty(value: list[Any]) -> list[Any]:
-    if not value:
-        raise ValueError("must be a non-empty list of segments")
-    return value
+class _SegmentList(Model):
+    """A trajectory of consecutive segments (a subclass types ``segments`` and names the
+    scenario key of each core segment field in ``CORE_KEYS``)."""
+
+    CORE_KEYS: ClassVar[Mapping[str, str]] = {}
+
+    @field_validator("segments", check_fields=False)
+    @classmethod
+    def _non_empty(cls, value: list[Any]) -> list[Any]:
+        if not value:
+            raise ValueError("must be a non-empty list of segments")
+        return value
+
+    @property
+    def natural_duration(self) -> float:
+        """Sum of the segment durations (s)."""
+        return float(sum(s.duration_s for s in self.segments))  # type: ignore[attr-defined]
+
+    def key_of(self, where: tuple[str | int, ...]) -> str:
+        """Scenario key of a core :class:`TrajectoryError` location."""
+        initial = _initial_key(where)
+        if initial is not None:
+            return initial
+        key = "trajectory"
+        for part in where:
+            key = join_key(key, self.CORE_KEYS.get(part, part) if isinstance(part, str) else part)
+        return key
 
 
 def core_initial(initial: Initial) -> tuple[float, float, float, np.ndarray, np.ndarray]:
@@ -186,28 +210,13 @@ class SegmentSpec(Model):
         )
 
 
-class SegmentsTrajectorySpec(Model):
+class SegmentsTrajectorySpec(_SegmentList):
     """``kind: segments``: maneuver segments in navigation terms from ``initial``."""
+
+    CORE_KEYS = SEGMENT_KEYS
 
     kind: Literal["segments"]
     segments: list[SegmentSpec]
-
-    _non_empty = field_validator("segments")(_non_empty)
-
-    @property
-    def natural_duration(self) -> float:
-        """Sum of the segment durations (s)."""
-        return float(sum(s.duration_s for s in self.segments))
-
-    def key_of(self, where: tuple[str | int, ...]) -> str:
-        """Scenario key of a core :class:`TrajectoryError` location."""
-        initial = _initial_key(where)
-        if initial is not None:
-            return initial
-        key = "trajectory"
-        for part in where:
-            key = join_key(key, SEGMENT_KEYS.get(part, part) if isinstance(part, str) else part)
-        return key
 
     def build(self, initial: Initial) -> SegmentsTrajectory:
         """The core model from ``initial``.
@@ -246,32 +255,17 @@ class IncrementSegmentSpec(Model):
         )
 
 
-class IncrementsTrajectorySpec(Model):
+class IncrementsTrajectorySpec(_SegmentList):
     """``kind: increments``: Savage's constant body rate / specific force segments."""
+
+    CORE_KEYS = {"duration": "duration_s"}
 
     kind: Literal["increments"]
     segments: list[IncrementSegmentSpec]
 
-    _non_empty = field_validator("segments")(_non_empty)
-
-    @property
-    def natural_duration(self) -> float:
-        """Sum of the segment durations (s)."""
-        return float(sum(s.duration_s for s in self.segments))
-
     def core_segments(self) -> list[IncrementSegment]:
         """The segments in SI units."""
         return [s.core_segment() for s in self.segments]
-
-    def key_of(self, where: tuple[str | int, ...]) -> str:
-        """Scenario key of a core :class:`TrajectoryError` location."""
-        initial = _initial_key(where)
-        if initial is not None:
-            return initial
-        key = "trajectory"
-        for part in where:
-            key = join_key(key, "duration_s" if part == "duration" else part)
-        return key
 
 
 # ---------------------------------------------------------------------------------------------
@@ -315,20 +309,23 @@ class ConingSpec(Model):
     @property
     def theta(self) -> float:
         """Cone half-angle θ (rad)."""
-        if self.theta_rad is not None:
-            return self.theta_rad
-        if self.theta_deg is not None:
-            return math.radians(self.theta_deg)
-        return THETA_DEFAULT
+        return _in_radians(self.theta_rad, self.theta_deg, THETA_DEFAULT)
 
     @property
     def precession_rate(self) -> float:
         """Precession rate Ω_p (rad/s)."""
-        if self.precession_rate_radps is not None:
-            return self.precession_rate_radps
-        if self.precession_rate_dps is not None:
-            return math.radians(self.precession_rate_dps)
-        return PRECESSION_RATE_DEFAULT
+        return _in_radians(
+            self.precession_rate_radps, self.precession_rate_dps, PRECESSION_RATE_DEFAULT
+        )
+
+
+def _in_radians(radians: float | None, degrees: float | None, default: float) -> float:
+    """An angle (or a rate) given in radians or in degrees (one of them; neither: the default)."""
+    if radians is not None:
+        return radians
+    if degrees is not None:
+        return math.radians(degrees)
+    return default
 
 
 def _null_is_empty(value: Any) -> Any:
@@ -396,14 +393,6 @@ class PerFit(Model):
         return self.position if fit == "position" else self.attitude
 
 
-def _number(value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ValueError(f"must be a number, got {type(value).__name__} {shorten(value)}")
-    if not math.isfinite(value):
-        raise ValueError(f"must be finite, got {shorten(value)}")
-    return float(value)
-
-
 def _integer(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int):
         raise ValueError(f"must be an integer, got {type(value).__name__} {shorten(value)}")
@@ -440,8 +429,8 @@ def _knots(value: Any) -> float | tuple[float, ...] | None:
     if value is None:
         return None
     if _is_list(value):
-        return _list(value, _number)
-    spacing = _number(value)
+        return _list(value, finite_number)
+    spacing = finite_number(value)
     if spacing <= 0.0:
         raise ValueError(
             f"must be > 0 (a spacing in s) or a list of breakpoints, got {shorten(value)}"
@@ -474,7 +463,7 @@ def _break(value: Any) -> tuple[float, int]:
         if key not in value:
             raise ScenarioError(key, "is required")
     return (
-        _checked("t_s", _number, value["t_s"]),
+        _checked("t_s", finite_number, value["t_s"]),
         _checked("continuity", _integer, value["continuity"]),
     )
 

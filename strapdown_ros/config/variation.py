@@ -15,8 +15,8 @@ from pydantic import Field, field_validator, model_validator
 
 from strapdown_ros.config.base import (
     Finite,
-    Model,
     NonNegative,
+    NullIsDefault,
     Positive,
     ScenarioError,
     StrictBool,
@@ -53,21 +53,10 @@ DEFAULT_WINDOW = 21
 DEFAULT_RANDOM_COMPONENTS = 64
 
 
-class _Section(Model):
-    """A mapping whose ``null`` values mean "the default" (as the scenario files always had)."""
-
-    @model_validator(mode="before")
-    @classmethod
-    def _null_is_default(cls, data: Any) -> Any:
-        if isinstance(data, dict):
-            return {k: v for k, v in data.items() if v is not None}
-        return data
-
-
 # -- bending -----------------------------------------------------------------------------------
 
 
-class Sinusoid(_Section):
+class Sinusoid(NullIsDefault):
     """``A sin(2π f t + p)`` per axis added to the lever arm (m, Hz, deg)."""
 
     amplitude_m: Vector3
@@ -75,7 +64,7 @@ class Sinusoid(_Section):
     phase_deg: Finite = 0.0
 
 
-class RandomBendingSpec(_Section):
+class RandomBendingSpec(NullIsDefault):
     """Band-limited random bending: ``components`` sinusoids per axis (docs/theory/offsets.md)."""
 
     sigma_m: Vector3
@@ -91,7 +80,7 @@ class RandomBendingSpec(_Section):
         return value
 
 
-class Bending(_Section):
+class Bending(NullIsDefault):
     """Time-varying part of the lever arm (m, Bref FRD): sinusoids, then the random ones."""
 
     sinusoids: list[Sinusoid] = Field(default_factory=list)
@@ -101,14 +90,14 @@ class Bending(_Section):
 # -- scan --------------------------------------------------------------------------------------
 
 
-class ScanSegment(_Section):
+class ScanSegment(NullIsDefault):
     """Constant rate (deg/s, Bvar axes) for ``duration_s`` > 0 s."""
 
     duration_s: Positive
     rate_dps: Vector3
 
 
-class SegmentsScanSpec(_Section):
+class SegmentsScanSpec(NullIsDefault):
     """Constant-rate segments from t = 0, held after the last one."""
 
     kind: Literal["segments"]
@@ -126,7 +115,7 @@ class SegmentsScanSpec(_Section):
         return max(float(np.linalg.norm(s.rate_dps)) for s in self.segments)
 
 
-class SweepScanSpec(_Section):
+class SweepScanSpec(NullIsDefault):
     """Triangular sweep 0 → +A → −A → +A … about ``axis`` at ``rate_dps`` from ``start_s``."""
 
     kind: Literal["sweep"]
@@ -147,7 +136,7 @@ class SweepScanSpec(_Section):
         return self.rate_dps
 
 
-class RasterScanSpec(_Section):
+class RasterScanSpec(NullIsDefault):
     """Azimuth sweeps (about z) with elevation steps (about y) at each end (docs)."""
 
     kind: Literal["raster"]
@@ -164,22 +153,20 @@ class RasterScanSpec(_Section):
         return max(self.rate_dps, el)
 
 
-ScanSpec = Annotated[
-    SegmentsScanSpec | SweepScanSpec | RasterScanSpec, Field(discriminator="kind")
-]
+ScanSpec = Annotated[SegmentsScanSpec | SweepScanSpec | RasterScanSpec, Field(discriminator="kind")]
 
 
 # -- filter ------------------------------------------------------------------------------------
 
 
-class WalkingWindow(_Section):
+class WalkingWindow(NullIsDefault):
     """Walking-window average of ``window`` cycles (Appendix D, eq. (D-8))."""
 
     kind: Literal["walking_window"]
     window: Annotated[StrictInt, Field(ge=1)] = DEFAULT_WINDOW
 
 
-class GeneralFilter(_Section):
+class GeneralFilter(NullIsDefault):
     """Eq. (D-4) with ``a_0..`` and ``b_1..``; must satisfy (D-3) and be stable."""
 
     kind: Literal["general"]
@@ -200,7 +187,7 @@ class GeneralFilter(_Section):
         return self
 
 
-class NoFilter(_Section):
+class NoFilter(NullIsDefault):
     """No smoothing of the scan."""
 
     kind: Literal["none"]
@@ -212,7 +199,7 @@ FilterSpec = Annotated[WalkingWindow | GeneralFilter | NoFilter, Field(discrimin
 # -- the section -------------------------------------------------------------------------------
 
 
-class VariationSpec(_Section):
+class VariationSpec(NullIsDefault):
     """The ``variation`` section (all keys optional). Body vectors FRD, metres, degrees.
 
     ``lever_arm_m`` (Bref axes) plus ``bending`` is ``l^Bref``; ``displacement_m`` (Bvar axes)
@@ -284,8 +271,9 @@ class VariationSpec(_Section):
         if isinstance(s, SegmentsScanSpec):
             return SegmentsScan(
                 np.asarray([g.duration_s for g in s.segments], dtype=np.float64),
-                np.asarray([np.radians(np.asarray(g.rate_dps, dtype=np.float64))
-                            for g in s.segments]),  # fmt: skip
+                np.asarray(
+                    [np.radians(np.asarray(g.rate_dps, dtype=np.float64)) for g in s.segments]
+                ),  # fmt: skip
             )
         amplitude, rate = math.radians(s.amplitude_deg), math.radians(s.rate_dps)
         if isinstance(s, SweepScanSpec):

@@ -21,7 +21,8 @@ PyYAML's safe loader, counting while it composes (so that a refused document is 
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import yaml
 from yaml.events import AliasEvent
@@ -60,8 +61,7 @@ class LimitError(ValueError):
 
 #: The problems, worded to follow "<file> " / "the value " / "the scenario ".
 DEEP = (
-    f"has lists and mappings nested more than {MAX_DEPTH} levels deep, the most a scenario may "
-    "have"
+    f"has lists and mappings nested more than {MAX_DEPTH} levels deep, the most a scenario may have"
 )
 MANY_ALIASES = f"has more than {MAX_ALIASES} alias references (*name), the most a scenario may have"
 MANY_VALUES = (
@@ -73,6 +73,9 @@ RECURSIVE = "has an alias inside the value it refers to (a recursive document)"
 def too_large(size: int) -> str:
     """The problem of a text of ``size`` bytes (> :data:`MAX_BYTES`)."""
     return f"has {size} bytes, more than the {MAX_BYTES} (1 MiB) a scenario may have"
+
+
+_N = TypeVar("_N", SequenceNode, MappingNode)
 
 
 class _BoundedLoader(yaml.SafeLoader):
@@ -90,24 +93,21 @@ class _BoundedLoader(yaml.SafeLoader):
                 raise LimitError(MANY_ALIASES, self.peek_event().start_mark)
         return super().compose_node(parent, index)
 
-    def _enter(self) -> None:
+    def _nested(self, compose: Callable[[str | None], _N], anchor: str | None) -> _N:
+        """``compose(anchor)`` one level deeper, refused beyond :data:`MAX_DEPTH`."""
         self._depth += 1
-        if self._depth > MAX_DEPTH:
-            raise LimitError(DEEP, self.peek_event().start_mark)
+        try:
+            if self._depth > MAX_DEPTH:
+                raise LimitError(DEEP, self.peek_event().start_mark)
+            return compose(anchor)
+        finally:
+            self._depth -= 1
 
     def compose_sequence_node(self, anchor: str | None) -> SequenceNode:
-        self._enter()
-        try:
-            return super().compose_sequence_node(anchor)
-        finally:
-            self._depth -= 1
+        return self._nested(super().compose_sequence_node, anchor)
 
     def compose_mapping_node(self, anchor: str | None) -> MappingNode:
-        self._enter()
-        try:
-            return super().compose_mapping_node(anchor)
-        finally:
-            self._depth -= 1
+        return self._nested(super().compose_mapping_node, anchor)
 
     def get_single_node(self) -> Node | None:
         node = super().get_single_node()
@@ -124,40 +124,63 @@ def _node_children(node: Node) -> list[Node]:
     return []
 
 
-def _measure_nodes(root: Node) -> None:
-    """Refuse a composed document whose aliases make it too large, too deep or recursive.
+def _walk_sizes(
+    root: Any,
+    children: Callable[[Any], list[Any]],
+    is_collection: Callable[[Any], bool],
+    mark: Callable[[Any], Any],
+    recursive: str,
+) -> None:
+    """Refuse a graph (a YAML node graph or a document in memory) too large, too deep or
+    containing itself.
 
-    Post-order walk of the node graph (each node once; an alias is a shared node): the
-    expanded size and depth of a node are 1 (a collection: 1 + the deepest child) plus those
-    of its children.
+    Post-order walk of the graph, each value once (a value reached twice, e.g. through an
+    alias, is shared): the expanded size of a value is 1 plus those of its children, its depth
+    ``is_collection`` (1 or 0) plus the deepest child's. ``mark`` gives a value's place in the
+    text (or None), ``recursive`` the problem of a value inside itself.
     """
     size: dict[int, int] = {}
     depth: dict[int, int] = {}
     open_: set[int] = set()
-    stack: list[tuple[Node, bool]] = [(root, False)]
+    stack: list[tuple[Any, bool]] = [(root, False)]
     while stack:
-        node, finished = stack.pop()
-        key = id(node)
-        children = _node_children(node)
+        value, finished = stack.pop()
+        key = id(value)
+        inner = children(value)
         if finished:
             open_.discard(key)
-            size[key] = 1 + sum(size[id(c)] for c in children)
-            nested = isinstance(node, SequenceNode | MappingNode)
-            depth[key] = nested + max((depth[id(c)] for c in children), default=0)
+            size[key] = 1 + sum(size[id(c)] for c in inner)
+            depth[key] = is_collection(value) + max((depth[id(c)] for c in inner), default=0)
             if size[key] > MAX_VALUES:
-                raise LimitError(MANY_VALUES, node.start_mark)
+                raise LimitError(MANY_VALUES, mark(value))
             if depth[key] > MAX_DEPTH:
-                raise LimitError(DEEP, node.start_mark)
+                raise LimitError(DEEP, mark(value))
             continue
         if key in size:
             continue
+        if not inner:  # a scalar (or an empty collection): no walk
+            size[key] = 1
+            depth[key] = int(is_collection(value))
+            continue
         open_.add(key)
-        stack.append((node, True))
-        for child in children:
+        stack.append((value, True))
+        for child in inner:
             if id(child) in open_:
-                raise LimitError(RECURSIVE, child.start_mark)
+                raise LimitError(recursive, mark(child))
             if id(child) not in size:
                 stack.append((child, False))
+
+
+def _measure_nodes(root: Node) -> None:
+    """Refuse a composed document whose aliases make it too large, too deep or recursive (an
+    alias is a shared node)."""
+    _walk_sizes(
+        root,
+        _node_children,
+        lambda node: isinstance(node, SequenceNode | MappingNode),
+        lambda node: node.start_mark,
+        RECURSIVE,
+    )
 
 
 def load_yaml(text: str) -> Any:
@@ -189,42 +212,18 @@ def check_document(document: Any) -> None:
     LimitError
         Without a line (the document is not text).
     """
-    size: dict[int, int] = {}
-    depth: dict[int, int] = {}
-    open_: set[int] = set()
-    stack: list[tuple[Any, bool]] = [(document, False)]
+    _walk_sizes(
+        document,
+        _value_children,
+        lambda value: isinstance(value, dict | list | tuple),
+        lambda value: None,
+        "has a value inside itself (a recursive document)",
+    )
 
-    def children(value: Any) -> list[Any]:
-        if isinstance(value, dict):
-            return [x for pair in value.items() for x in pair]
-        if isinstance(value, list | tuple):
-            return list(value)
-        return []
 
-    while stack:
-        value, finished = stack.pop()
-        key = id(value)
-        inner = children(value)
-        if finished:
-            open_.discard(key)
-            size[key] = 1 + sum(size[id(c)] for c in inner)
-            nested = isinstance(value, dict | list | tuple)
-            depth[key] = nested + max((depth[id(c)] for c in inner), default=0)
-            if size[key] > MAX_VALUES:
-                raise LimitError(MANY_VALUES)
-            if depth[key] > MAX_DEPTH:
-                raise LimitError(DEEP)
-            continue
-        if key in size:
-            continue
-        if not inner:  # a scalar (or an empty collection): no walk
-            size[key] = 1
-            depth[key] = int(isinstance(value, dict | list | tuple))
-            continue
-        open_.add(key)
-        stack.append((value, True))
-        for child in inner:
-            if id(child) in open_:
-                raise LimitError("has a value inside itself (a recursive document)")
-            if id(child) not in size:
-                stack.append((child, False))
+def _value_children(value: Any) -> list[Any]:
+    if isinstance(value, dict):
+        return [x for pair in value.items() for x in pair]
+    if isinstance(value, list | tuple):
+        return list(value)
+    return []

@@ -38,6 +38,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize_scalar
 
+from strapdown_ros.core.array_types import F64
+
 __all__ = [
     "BIAS_INSTABILITY_FACTOR",
     "GAUSS_MARKOV_PEAK",
@@ -51,13 +53,12 @@ __all__ = [
     "white_noise_coefficient",
 ]
 
-Array = NDArray[np.float64]
 
 #: ``σ_min / B`` of flicker (1/f) rate noise: ``√(2 ln 2 / π) ≈ 0.6643`` (IEEE Std 952).
 BIAS_INSTABILITY_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
 
 
-def _gm_g(x: ArrayLike) -> Array:
+def _gm_g(x: ArrayLike) -> F64:
     """``g(x) = σ²(τ) / σ_GM²`` of a first-order Gauss–Markov rate at ``x = τ / τ_c`` (> 0)."""
     x = np.asarray(x, dtype=np.float64)
     # -expm1 forms keep the bracket accurate for small x (where it is ~ x²/3).
@@ -109,7 +110,7 @@ def default_cluster_sizes(
 
 def overlapping_allan_deviation(
     rate: ArrayLike, period_s: float, cluster_sizes: ArrayLike | None = None
-) -> tuple[Array, Array]:
+) -> tuple[F64, F64]:
     """Fully overlapping Allan deviation of rate samples.
 
     Parameters
@@ -153,7 +154,7 @@ def overlapping_allan_deviation(
     return sizes * float(period_s), adev
 
 
-def _log_interp(taus: Array, values: Array, tau_s: float) -> Array:
+def _log_interp(taus: F64, values: F64, tau_s: float) -> F64:
     """Interpolate ``values`` (K,) or (K, k) linearly in log-log at ``tau_s``."""
     t = np.asarray(taus, dtype=np.float64)
     if not (t[0] <= tau_s <= t[-1]):
@@ -164,7 +165,7 @@ def _log_interp(taus: Array, values: Array, tau_s: float) -> Array:
     return np.exp(lv[j - 1] + w * (lv[j] - lv[j - 1]))
 
 
-def white_noise_coefficient(taus: ArrayLike, adev: ArrayLike, tau_s: float = 1.0) -> Array:
+def white_noise_coefficient(taus: ArrayLike, adev: ArrayLike, tau_s: float = 1.0) -> F64:
     """ARW / VRW coefficient ``N = σ(τ) √τ`` read on the −½ slope at ``τ = tau_s``.
 
     With ``rate`` in rad/s this is rad/√s (× 180/π × 60 for deg/√h); in m/s², m/s/√s
@@ -187,7 +188,7 @@ def white_noise_coefficient(taus: ArrayLike, adev: ArrayLike, tau_s: float = 1.0
     return _log_interp(np.asarray(taus), np.asarray(adev), tau_s) * math.sqrt(tau_s)
 
 
-def rate_random_walk(taus: ArrayLike, adev: ArrayLike, tau_s: float = 3.0) -> Array:
+def rate_random_walk(taus: ArrayLike, adev: ArrayLike, tau_s: float = 3.0) -> F64:
     """Rate random walk ``K = σ(τ) √(3/τ)`` read on the +½ slope at ``τ = tau_s``.
 
     ``tau_s`` must lie where the +½ slope dominates (the convention τ = 3 s reads the line
@@ -206,7 +207,7 @@ def bias_instability(
     adev: ArrayLike,
     tau_min: float | None = None,
     tau_max: float | None = None,
-) -> tuple[Array, Array]:
+) -> tuple[F64, F64]:
     """Bias instability ``B = σ_flat / 0.664`` read on the flat part of the Allan deviation.
 
     The flat part is where the log-log slope is closest to 0 (the usual reading, e.g. IEEE
@@ -215,10 +216,8 @@ def bias_instability(
 
     Parameters
     ----------
-    taus : (K,) array
-        Increasing averaging times (s).
-    adev : (K,) or (K, k) array
-        Allan deviation.
+    taus, adev
+        As in :func:`white_noise_coefficient`.
     tau_min, tau_max : float, optional
         Only τ in ``[tau_min, tau_max]`` are searched. Default ``tau_max``: a third of the
         largest τ (the longest τ have few independent clusters and noisy slopes).
@@ -252,7 +251,7 @@ def bias_instability(
     return b.reshape(shape), t[j].reshape(shape)
 
 
-def gauss_markov_allan_variance(taus: ArrayLike, sigma: float, correlation_time_s: float) -> Array:
+def gauss_markov_allan_variance(taus: ArrayLike, sigma: float, correlation_time_s: float) -> F64:
     """Allan variance of a first-order Gauss–Markov rate (steady-state σ, correlation τ_c).
 
     ``σ²(τ) = σ² g(τ/τ_c)``, ``g(x) = (2/x)[1 - (3 - 4e^{-x} + e^{-2x}) / (2x)]`` for the
@@ -276,7 +275,7 @@ def model_allan_deviation(
     correlation_time_s: float = 1.0,
     random_walk: float = 0.0,
     quantization: float = 0.0,
-) -> Array:
+) -> F64:
     """Allan deviation of a sum of independent noise terms (theory, for plots and checks).
 
     Parameters

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from strapdown_ros.core.rotations import matrix3
+from strapdown_ros.core.rotations import as_matrices, as_vectors, matrix3
 from strapdown_ros.core.threads import rowwise
 
 __all__ = [
@@ -88,22 +88,12 @@ _EP2_LD = _E2_LD / (1 - _E2_LD)
 _HALF_PI_LD = np.arctan2(_LD(1), _LD(0))
 
 
+#: A state: position (..., 3), velocity (..., 3) and attitude DCM (..., 3, 3) or None.
+_PosVelAtt = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]
+
+
 def _f64(x: ArrayLike) -> NDArray[np.float64]:
     return np.asarray(x, dtype=np.float64)
-
-
-def _vec(v: ArrayLike) -> NDArray[np.float64]:
-    v = np.asarray(v, dtype=np.float64)
-    if v.shape[-1:] != (3,):
-        raise ValueError(f"expected an array of 3-vectors (..., 3), got shape {v.shape}")
-    return v
-
-
-def _mat(c: ArrayLike) -> NDArray[np.float64]:
-    c = np.asarray(c, dtype=np.float64)
-    if c.shape[-2:] != (3, 3):
-        raise ValueError(f"expected an array of 3x3 matrices (..., 3, 3), got shape {c.shape}")
-    return c
 
 
 def _mv(c: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -196,7 +186,7 @@ def ecef_to_geodetic(
     alt : ndarray (...)
         Altitude h above the WGS-84 ellipsoid, m.
     """
-    r = _vec(r).astype(_LD)
+    r = as_vectors(r).astype(_LD)
     x, y, z = r[..., 0], r[..., 1], r[..., 2]
     p = np.hypot(x, y)
     lon = np.arctan2(y, x)
@@ -230,16 +220,8 @@ def meridian_radius(lat: ArrayLike) -> NDArray[np.float64]:
     """Meridian (north-south) radius of curvature ``R_N = a (1 - e²) / (1 - e² sin² φ)^{3/2}``.
 
     Standard ellipsoid geometry (Groves 2013 eq. (2.105); Savage, *Strapdown Analytics*, §5.2).
-
-    Parameters
-    ----------
-    lat : array_like (...)
-        Geodetic latitude φ, rad.
-
-    Returns
-    -------
-    ndarray (...)
-        ``R_N``, m (a(1-e²) at the equator, a²/b at the poles).
+    ``lat`` (...): geodetic latitude φ, rad; ``R_N`` (...) in m: a(1-e²) at the equator, a²/b
+    at the poles.
     """
     s = np.sin(_f64(lat))
     w2 = 1.0 - E2_WGS84 * s * s
@@ -250,17 +232,8 @@ def transverse_radius(lat: ArrayLike) -> NDArray[np.float64]:
     """Prime-vertical (east-west) radius of curvature ``R_E = a / sqrt(1 - e² sin² φ)``.
 
     Standard ellipsoid geometry (Groves 2013 eq. (2.106)); ``R_E`` is also the length of the
-    ellipsoid normal from the surface to the polar axis.
-
-    Parameters
-    ----------
-    lat : array_like (...)
-        Geodetic latitude φ, rad.
-
-    Returns
-    -------
-    ndarray (...)
-        ``R_E``, m (a at the equator, a²/b at the poles).
+    ellipsoid normal from the surface to the polar axis. ``lat`` (...): geodetic latitude φ,
+    rad; ``R_E`` (...) in m: a at the equator, a²/b at the poles.
     """
     s = np.sin(_f64(lat))
     return A_WGS84 / np.sqrt(1.0 - E2_WGS84 * s * s)
@@ -269,17 +242,7 @@ def transverse_radius(lat: ArrayLike) -> NDArray[np.float64]:
 def radii(lat: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Both radii of curvature ``(R_N, R_E)`` at geodetic latitude ``lat`` (rad), in m.
 
-    See :func:`meridian_radius` and :func:`transverse_radius`.
-
-    Parameters
-    ----------
-    lat : array_like (...)
-        Geodetic latitude φ, rad.
-
-    Returns
-    -------
-    R_N, R_E : ndarray (...)
-        Meridian and prime-vertical radii of curvature, m.
+    See :func:`meridian_radius` and :func:`transverse_radius` (same shapes).
     """
     return meridian_radius(lat), transverse_radius(lat)
 
@@ -317,17 +280,9 @@ def dcm_ned_to_ecef(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
 
 
 def dcm_ecef_to_ned(lat: ArrayLike, lon: ArrayLike) -> NDArray[np.float64]:
-    """``C_E^N = (C_N^E)ᵀ``: ECEF to local-level NED; see :func:`dcm_ned_to_ecef`.
+    """``C_E^N = (C_N^E)ᵀ`` (..., 3, 3): ECEF to local-level NED, ``v^N = C_E^N v^E``.
 
-    Parameters
-    ----------
-    lat, lon : array_like (...)
-        Geodetic latitude φ and longitude λ, rad.
-
-    Returns
-    -------
-    ndarray (..., 3, 3)
-        ``C_E^N`` with ``v^N = C_E^N v^E`` (rows are north, east, down in ECEF).
+    Rows are north, east, down in ECEF; arguments as :func:`dcm_ned_to_ecef`'s.
     """
     return np.swapaxes(dcm_ned_to_ecef(lat, lon), -1, -2)
 
@@ -354,17 +309,9 @@ def dcm_ecef_to_e0(t: ArrayLike) -> NDArray[np.float64]:
 
 
 def dcm_e0_to_ecef(t: ArrayLike) -> NDArray[np.float64]:
-    """``C_E0^E(t) = (C_E^E0(t))ᵀ = Rz(-ω_ie t)``; see :func:`dcm_ecef_to_e0`.
+    """``C_E0^E(t) = (C_E^E0(t))ᵀ = Rz(-ω_ie t)`` (..., 3, 3), ``v^E = C_E0^E v^E0``.
 
-    Parameters
-    ----------
-    t : array_like (...)
-        Time since ``t0``, s.
-
-    Returns
-    -------
-    ndarray (..., 3, 3)
-        ``C_E0^E`` with ``v^E = C_E0^E v^E0``.
+    ``t`` as in :func:`dcm_ecef_to_e0`.
     """
     return np.swapaxes(dcm_ecef_to_e0(t), -1, -2)
 
@@ -379,7 +326,7 @@ def ecef_state_to_e0(
     r_e: ArrayLike,
     v_e: ArrayLike,
     C_b_e: ArrayLike | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+) -> _PosVelAtt:
     """Earth-referenced state to the inertial E0 state of docs/interface.md §3.
 
     ``R^E0 = C_E^E0 r^E``, ``V^E0 = dR^E0/dt = C_E^E0 (v^E + ω_ie × r^E)``,
@@ -406,10 +353,10 @@ def ecef_state_to_e0(
         Attitude ``C_B^E0`` (None if ``C_b_e`` is None).
     """
     c = dcm_ecef_to_e0(t)
-    r_e, v_e = _vec(r_e), _vec(v_e)
+    r_e, v_e = as_vectors(r_e), as_vectors(v_e)
     r0 = _mv(c, r_e)
     v0 = _mv(c, v_e + _omega_cross(r_e))
-    cb = None if C_b_e is None else c @ _mat(C_b_e)
+    cb = None if C_b_e is None else c @ as_matrices(C_b_e)
     return r0, v0, cb
 
 
@@ -418,38 +365,19 @@ def e0_state_to_ecef(
     R_e0: ArrayLike,
     V_e0: ArrayLike,
     C_b_e0: ArrayLike | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+) -> _PosVelAtt:
     """Inertial E0 state of docs/interface.md §3 to the Earth-referenced state.
 
-    Inverse of :func:`ecef_state_to_e0` (exact up to rounding).
+    The inverse of :func:`ecef_state_to_e0` (exact up to rounding), with its shapes and units.
 
     ``r^E = C_E0^E R^E0``, ``v^E = C_E0^E V^E0 - ω_ie × r^E``, ``C_B^E = C_E0^E C_B^E0``
-    (Savage 2020 (E-7) velocity and (E-8) chain rule, with E in place of N).
-
-    Parameters
-    ----------
-    t : array_like (...)
-        Time since ``t0``, s.
-    R_e0 : array_like (..., 3)
-        Position ``R^E0``, m.
-    V_e0 : array_like (..., 3)
-        Inertial velocity ``V^E0 = dR^E0/dt`` in E0 coordinates, m/s.
-    C_b_e0 : array_like (..., 3, 3) or None
-        Attitude ``C_B^E0``, or None.
-
-    Returns
-    -------
-    r_e : ndarray (..., 3)
-        Position ``r^E`` in ECEF, m.
-    v_e : ndarray (..., 3)
-        Velocity relative to the Earth in ECEF coordinates, m/s.
-    C_b_e : ndarray (..., 3, 3) or None
-        Attitude ``C_B^E`` (None if ``C_b_e0`` is None).
+    (Savage 2020 (E-7) velocity and (E-8) chain rule, with E in place of N); ``C_b_e`` is None
+    if ``C_b_e0`` is.
     """
     c = dcm_ecef_to_e0(t)
-    r_e = _mtv(c, _vec(R_e0))
-    v_e = _mtv(c, _vec(V_e0)) - _omega_cross(r_e)
-    cb = None if C_b_e0 is None else np.swapaxes(c, -1, -2) @ _mat(C_b_e0)
+    r_e = _mtv(c, as_vectors(R_e0))
+    v_e = _mtv(c, as_vectors(V_e0)) - _omega_cross(r_e)
+    cb = None if C_b_e0 is None else np.swapaxes(c, -1, -2) @ as_matrices(C_b_e0)
     return r_e, v_e, cb
 
 
@@ -474,9 +402,9 @@ def body_rates_relative_to_earth(
     ndarray (..., 3)
         ``ω_eb^B`` in body axes, rad/s.
     """
-    c = _mat(C_b_e)
+    c = as_matrices(C_b_e)
     # C_E^B ω_ie^E = (C_B^E)ᵀ [0, 0, ω_ie] = ω_ie × (row 2 of C_B^E).
-    return _vec(omega_ib_b) - OMEGA_IE * c[..., 2, :]
+    return as_vectors(omega_ib_b) - OMEGA_IE * c[..., 2, :]
 
 
 def ned_velocity_from_ecef(lat: ArrayLike, lon: ArrayLike, v_e: ArrayLike) -> NDArray[np.float64]:
@@ -494,25 +422,15 @@ def ned_velocity_from_ecef(lat: ArrayLike, lon: ArrayLike, v_e: ArrayLike) -> ND
     ndarray (..., 3)
         ``[v_N, v_E, v_D]``, m/s.
     """
-    return _mtv(dcm_ned_to_ecef(lat, lon), _vec(v_e))
+    return _mtv(dcm_ned_to_ecef(lat, lon), as_vectors(v_e))
 
 
 def ecef_velocity_from_ned(lat: ArrayLike, lon: ArrayLike, v_ned: ArrayLike) -> NDArray[np.float64]:
-    """Earth-relative velocity resolved in ECEF: ``v^E = C_N^E v^N``.
+    """Earth-relative velocity resolved in ECEF, ``v^E = C_N^E v^N`` (..., 3), m/s.
 
-    Parameters
-    ----------
-    lat, lon : array_like (...)
-        Geodetic latitude and longitude, rad.
-    v_ned : array_like (..., 3)
-        ``[v_N, v_E, v_D]``, m/s.
-
-    Returns
-    -------
-    ndarray (..., 3)
-        Velocity relative to the Earth in ECEF coordinates, m/s.
+    The inverse of :func:`ned_velocity_from_ecef` (``v_ned`` = ``[v_N, v_E, v_D]``, m/s).
     """
-    return _mv(dcm_ned_to_ecef(lat, lon), _vec(v_ned))
+    return _mv(dcm_ned_to_ecef(lat, lon), as_vectors(v_ned))
 
 
 def geodetic_rates(
@@ -540,7 +458,7 @@ def geodetic_rates(
         m/s.
     """
     lat, alt = _f64(lat), _f64(alt)
-    v = _vec(v_ned)
+    v = as_vectors(v_ned)
     rn, re = radii(lat)
     with np.errstate(divide="ignore"):
         lon_dot = v[..., 1] / ((re + alt) * np.cos(lat))

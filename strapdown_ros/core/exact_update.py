@@ -24,8 +24,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.rotations import _skew_terms, rotvec_from_dcm
 from strapdown_ros.core.series import rotation_coefficients
 
@@ -41,11 +42,11 @@ __all__ = [
     "one_step_residuals",
 ]
 
-Array = NDArray[np.float64]
-GravityFn = Callable[[Array], Array]
+#: Gravity (m/s², E0) at positions (..., 3) in E0 (m).
+GravityFn = Callable[[F64], F64]
 
 
-def g_matrices(dalpha: ArrayLike) -> tuple[Array, Array, Array]:
+def g_matrices(dalpha: ArrayLike) -> tuple[F64, F64, F64]:
     """``G_C``, ``G_V``, ``G_R`` of Savage 2020 eqs. (2), (3), (4) for rotation increments.
 
     ``G_C = I + f1 (Δα×) + f2 (Δα×)²``, ``G_V = I + f2 (Δα×) + f3 (Δα×)²``,
@@ -71,22 +72,22 @@ def g_matrices(dalpha: ArrayLike) -> tuple[Array, Array, Array]:
     return eye + k1 * k + k2 * kk, eye + k2 * k + k3 * kk, 0.5 * eye + k3 * k + k4 * kk
 
 
-def g_c(dalpha: ArrayLike) -> Array:
+def g_c(dalpha: ArrayLike) -> F64:
     """``G_C(Δα)`` of Savage 2020 eq. (2) (rad in, DCM ``C_{B_m}^{B_{m-1}}`` out)."""
     return g_matrices(dalpha)[0]
 
 
-def g_v(dalpha: ArrayLike) -> Array:
+def g_v(dalpha: ArrayLike) -> F64:
     """``G_V(Δα)`` of Savage 2020 eq. (3) (rad in, dimensionless 3x3 out)."""
     return g_matrices(dalpha)[1]
 
 
-def g_r(dalpha: ArrayLike) -> Array:
+def g_r(dalpha: ArrayLike) -> F64:
     """``G_R(Δα)`` of Savage 2020 eq. (4) (rad in, dimensionless 3x3 out)."""
     return g_matrices(dalpha)[2]
 
 
-def _mv(m: Array, v: Array) -> Array:
+def _mv(m: F64, v: F64) -> F64:
     return np.einsum("...ij,...j->...i", m, v)
 
 
@@ -99,7 +100,7 @@ def exact_update(
     g_prev: ArrayLike,
     g_cur: ArrayLike,
     period: float | ArrayLike,
-) -> tuple[Array, Array, Array]:
+) -> tuple[F64, F64, F64]:
     """One exact cycle of Savage 2020 eqs. (2)-(4), vectorized over any number of cycles.
 
     Parameters
@@ -146,15 +147,15 @@ def exact_update(
 
 
 def exact_update_single(
-    c_prev: Array,
-    v_prev: Array,
-    r_prev: Array,
-    dalpha: Array,
-    dv: Array,
-    g_prev: Array,
-    g_cur: Array,
+    c_prev: F64,
+    v_prev: F64,
+    r_prev: F64,
+    dalpha: F64,
+    dv: F64,
+    g_prev: F64,
+    g_cur: F64,
     period: float,
-) -> tuple[Array, Array, Array]:
+) -> tuple[F64, F64, F64]:
     """Single-cycle form of :func:`exact_update` (same arguments, one cycle, plain 3-vectors).
 
     Written as the per-cycle Python form of Savage 2020 eqs. (2)-(4): a reference for the
@@ -195,9 +196,9 @@ class Residuals:
         ``|R_m - R_pred|`` (m).
     """
 
-    attitude: Array
-    velocity: Array
-    position: Array
+    attitude: F64
+    velocity: F64
+    position: F64
 
     #: docs/interface.md §3 tolerances: a one-step residual above these is a defect.
     TOL_ATTITUDE = 1e-11
@@ -279,7 +280,7 @@ def integrate(
     period: float,
     gravity: GravityFn,
     iterations: int = 3,
-) -> tuple[Array, Array, Array]:
+) -> tuple[F64, F64, F64]:
     """Integrate increments from an initial state with eqs. (2)-(4), gravity at the new position.
 
     ``g_m = g(R_m)`` appears on both sides of eq. (4); it is solved by fixed-point iteration

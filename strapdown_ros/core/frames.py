@@ -11,14 +11,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ned_to_ecef, geodetic_to_ecef
 from strapdown_ros.core.rotations import C_FRD_TO_FLU, C_NED_TO_ENU
 
-__all__ = ["Datum", "MapPose", "body_in_map", "row_times", "sensor_in_body"]
+__all__ = [
+    "Datum",
+    "MapPose",
+    "body_in_map",
+    "lever_arm_in_base_link",
+    "row_times",
+    "sensor_in_body",
+]
 
-F64 = NDArray[np.float64]
 
 #: FRD ↔ FLU sign flips, applied elementwise.
 _FLU = np.array([1.0, -1.0, -1.0])
@@ -106,3 +113,13 @@ def sensor_in_body(
     cs = c[..., 0] * s[..., 0:1] + c[..., 1] * s[..., 1:2] + c[..., 2] * s[..., 2:3]
     p = np.asarray(lever_arm_frd, dtype=np.float64) + cs
     return p * _FLU, c * _FLU[:, None] * _FLU  # D C D, elementwise
+
+
+def lever_arm_in_base_link(lever_arm_frd: ArrayLike) -> F64:
+    """Translation of ``base_link → sensor`` of a sensor at the lever arm ``l^B``.
+
+    ``l^B``: body FRD, m, from the reference IMU (the origin of ``base_link``). Returns
+    ``FLU(l^B) = D l^B`` (m), ``D = diag(1, −1, −1)``; the sensor's axes are the body's
+    (rotation identity).
+    """
+    return np.asarray(lever_arm_frd, dtype=np.float64) * _FLU

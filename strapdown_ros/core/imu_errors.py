@@ -16,10 +16,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.signal import lfilter
 
 from strapdown_ros.core.allan import BIAS_INSTABILITY_FACTOR, GAUSS_MARKOV_PEAK
+from strapdown_ros.core.array_types import F64
 
 __all__ = [
     "G0",
@@ -30,7 +31,6 @@ __all__ = [
     "misalignment_matrix",
 ]
 
-Array = NDArray[np.float64]
 
 #: Standard gravity (m/s²), the ``g`` of the ``mg`` and ``_g`` units.
 G0 = 9.80665
@@ -75,19 +75,19 @@ class SensorErrors:
         Gyro g-sensitivity (rad/s per m/s² of specific force); zero for accelerometers.
     """
 
-    bias: Array
-    turn_on_bias_sigma: Array
-    bias_instability: Array
-    correlation_time_s: Array
-    white: Array
-    random_walk: Array
-    scale_factor: Array
-    scale_factor_sigma: Array
-    misalignment: Array
-    misalignment_sigma: Array
-    quantum: Array
-    range: Array
-    g_sensitivity: Array
+    bias: F64
+    turn_on_bias_sigma: F64
+    bias_instability: F64
+    correlation_time_s: F64
+    white: F64
+    random_walk: F64
+    scale_factor: F64
+    scale_factor_sigma: F64
+    misalignment: F64
+    misalignment_sigma: F64
+    quantum: F64
+    range: F64
+    g_sensitivity: F64
 
     @classmethod
     def zero(cls) -> SensorErrors:
@@ -96,7 +96,7 @@ class SensorErrors:
         return cls(z3, z3, z3, np.ones(3), z3, z3, z3, z3, z33, z33, z3, z3, z33)
 
     @property
-    def gauss_markov_sigma(self) -> Array:
+    def gauss_markov_sigma(self) -> F64:
         """Steady-state deviation ``σ_GM = 0.664 B / 0.6174`` of the Gauss–Markov bias (rate)."""
         return self.bias_instability * (BIAS_INSTABILITY_FACTOR / GAUSS_MARKOV_PEAK)
 
@@ -118,7 +118,7 @@ class ImuErrorParameters:
         return cls(SensorErrors.zero(), SensorErrors.zero(), seed)
 
 
-def misalignment_matrix(values: ArrayLike) -> Array:
+def misalignment_matrix(values: ArrayLike) -> F64:
     """3×3 misalignment matrix of the 6 values ``[xy, xz, yx, yz, zx, zy]`` (zero diagonal)."""
     v = np.asarray(values, dtype=np.float64)
     if v.shape != (6,):
@@ -133,7 +133,7 @@ def misalignment_matrix(values: ArrayLike) -> Array:
 # The stateful model.
 
 
-def _gm_integral_factor(x: Array) -> Array:
+def _gm_integral_factor(x: F64) -> F64:
     """``h(x) = x - 2(1 - e^{-x}) + (1 - e^{-2x})/2`` (→ x³/3 for small x), x = T/τ_c."""
     e1 = -np.expm1(-x)
     e2 = -np.expm1(-2.0 * x)
@@ -145,7 +145,7 @@ def _gm_integral_factor(x: Array) -> Array:
 class _Triad:
     """One sensor triad's realized constants, discretized noise and carried state."""
 
-    def __init__(self, p: SensorErrors, period_s: float, unit: Array) -> None:
+    def __init__(self, p: SensorErrors, period_s: float, unit: F64) -> None:
         T = period_s
         self.T = T
         # Per-run constants (draws in the fixed layout, whatever the sigmas).
@@ -186,7 +186,7 @@ class _Triad:
         self.cum = np.zeros(3)  # running sum of the quantizer inputs
         self.count = np.zeros(3)  # floor(cum / q) after the last cycle
 
-    def noise(self, z: Array) -> Array:
+    def noise(self, z: F64) -> F64:
         """Integrated stochastic errors of n cycles, (n, 3); advances the states."""
         n = z.shape[0]
         out = self.white * z[:, 0:3]
@@ -207,7 +207,7 @@ class _Triad:
             self.rw = walk[-1].copy()
         return out
 
-    def apply(self, ideal: Array, z: Array, dv: Array | None) -> Array:
+    def apply(self, ideal: F64, z: F64, dv: F64 | None) -> F64:
         """Measured increments (n, 3) of ideal increments (n, 3); advances the states."""
         e = self.error_matrix
         err = (
@@ -269,26 +269,26 @@ class ImuErrorModel:
 
     # Realized per-run constants (fixed + drawn), for checks and reports.
     @property
-    def gyro_bias(self) -> Array:
+    def gyro_bias(self) -> F64:
         """Constant gyro bias of this run, fixed plus turn-on (rad/s, FRD)."""
         return self._gyro.bias_T / self.period_s
 
     @property
-    def accel_bias(self) -> Array:
+    def accel_bias(self) -> F64:
         """Constant accelerometer bias of this run, fixed plus turn-on (m/s², FRD)."""
         return self._accel.bias_T / self.period_s
 
     @property
-    def gyro_error_matrix(self) -> Array:
+    def gyro_error_matrix(self) -> F64:
         """``S + M`` of the gyros in this run (3×3, dimensionless)."""
         return self._gyro.error_matrix.copy()
 
     @property
-    def accel_error_matrix(self) -> Array:
+    def accel_error_matrix(self) -> F64:
         """``S + M`` of the accelerometers in this run (3×3, dimensionless)."""
         return self._accel.error_matrix.copy()
 
-    def apply(self, dalpha: ArrayLike, dv: ArrayLike) -> tuple[Array, Array]:
+    def apply(self, dalpha: ArrayLike, dv: ArrayLike) -> tuple[F64, F64]:
         """Measured increments of the next n cycles.
 
         Parameters
@@ -327,7 +327,7 @@ class ImuErrorModel:
         self._accel.noise(z[:, 15:])
         self.cycles += n
 
-    def rate_noise_variance(self) -> tuple[Array, Array]:
+    def rate_noise_variance(self) -> tuple[F64, F64]:
         """Variance of the white part of one cycle's mean-rate error, per FRD axis.
 
         ``N²/T`` (white noise) plus ``q²/(6 T²)`` (quantization with the residual carried: the

@@ -23,10 +23,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core import _compiled as _k
-from strapdown_ros.core.exact_update import g_matrices
+from strapdown_ros.core.array_types import F64
+from strapdown_ros.core.exact_update import GravityFn, g_matrices
 from strapdown_ros.core.rotations import rotvec_from_dcm
 from strapdown_ros.core.series import rotation_coefficients
 
@@ -36,22 +37,19 @@ __all__ = [
     "method2",
     "PairSystem",
     "pair_displacement",
-    "solve_pairs",
 ]
 
-Array = NDArray[np.float64]
-GravityFn = Callable[[Array], Array]
 
 
-def _mv(m: Array, v: Array) -> Array:
+def _mv(m: F64, v: F64) -> F64:
     return np.einsum("...ij,...j->...i", m, v)
 
 
-def _t(m: Array) -> Array:
+def _t(m: F64) -> F64:
     return np.swapaxes(m, -1, -2)
 
 
-def attitude_increments(c_b_e0: ArrayLike) -> Array:
+def attitude_increments(c_b_e0: ArrayLike) -> F64:
     """Δα_m of Savage 2020 eq. (8): rotation vector of ``G_C = C_{m-1}ᵀ C_m``.
 
     Parameters
@@ -68,7 +66,7 @@ def attitude_increments(c_b_e0: ArrayLike) -> Array:
     return rotvec_from_dcm(_k.matmul33(c[:-1], c[1:], transpose_a=True))
 
 
-def _inv3(m: Array) -> Array:
+def _inv3(m: F64) -> F64:
     """Inverses of an array of 3x3 matrices by the adjugate (fast for well-conditioned ones)."""
     # Work on contiguous rows (one per matrix element) rather than strided views.
     a, b, c, d, e, f, g, h, i = np.ascontiguousarray(m.reshape(-1, 9).T)
@@ -95,20 +93,20 @@ class PairSystem:
 
     def __init__(
         self,
-        c_prev2: Array,
-        c_prev1: Array,
-        gv1: Array,
-        gr1: Array,
-        gv2: Array,
-        gr2: Array,
-        r_prev2: Array,
-        r_cur: Array,
-        v_prev2: Array,
-        v_cur: Array,
-        g_prev2: Array,
-        g_cur: Array,
+        c_prev2: F64,
+        c_prev1: F64,
+        gv1: F64,
+        gr1: F64,
+        gv2: F64,
+        gr2: F64,
+        r_prev2: F64,
+        r_cur: F64,
+        v_prev2: F64,
+        v_cur: F64,
+        g_prev2: F64,
+        g_cur: F64,
         period: float,
-        displacement: Array | None = None,
+        displacement: F64 | None = None,
     ) -> None:
         t = period
         eye = np.eye(3)
@@ -139,13 +137,13 @@ class PairSystem:
         self.k_odd = (a_odd - eye) * (t * t)  # coefficient of g_{2n-1} in B_num
         self.k_even = (a_even - eye) * (t * t)
 
-    def solve(self, g_prev1: Array) -> tuple[Array, Array]:
+    def solve(self, g_prev1: F64) -> tuple[F64, F64]:
         """Δv_{2n-1} (eq. (27)) and Δv_{2n} (eq. (30)) for odd-cycle gravity ``g_prev1``."""
         dv_odd = _mv(self.b_inv_odd, self.num_odd + _mv(self.k_odd, g_prev1))
         dv_even = _mv(self.b_inv_even, self.num_even + _mv(self.k_even, g_prev1))
         return dv_odd, dv_even
 
-    def odd_state(self, dv_odd: Array, g_prev1: Array) -> tuple[Array, Array]:
+    def odd_state(self, dv_odd: F64, g_prev1: F64) -> tuple[F64, F64]:
         """V_{2n-1}, R_{2n-1} from eqs. (3), (4) applied over cycle 2n-1."""
         t = self.period
         v = self.v_prev2 + _mv(self.cgv1, dv_odd) + 0.5 * (g_prev1 + self.g_prev2) * t
@@ -158,35 +156,7 @@ class PairSystem:
         return v, r
 
 
-def solve_pairs(
-    c_prev2: Array,
-    c_prev1: Array,
-    gv1: Array,
-    gr1: Array,
-    gv2: Array,
-    gr2: Array,
-    r_prev2: Array,
-    r_cur: Array,
-    v_prev2: Array,
-    v_cur: Array,
-    g_prev2: Array,
-    g_prev1: Array,
-    g_cur: Array,
-    period: float,
-    displacement: Array | None = None,
-) -> tuple[Array, Array]:
-    """Savage 2020 eq. (31): Δv_{2n-1}, Δv_{2n} (m/s, body axes) for arrays of cycle pairs.
-
-    One-shot form of :class:`PairSystem` (same subscripts and arguments, plus ``g_prev1``).
-    """
-    system = PairSystem(
-        c_prev2, c_prev1, gv1, gr1, gv2, gr2, r_prev2, r_cur, v_prev2, v_cur, g_prev2, g_cur,
-        period, displacement,
-    )  # fmt: skip
-    return system.solve(g_prev1)
-
-
-def pair_displacement(v_e0: ArrayLike, period: float) -> Array:
+def pair_displacement(v_e0: ArrayLike, period: float) -> F64:
     """``R_{2n} - R_{2n-2}`` by Simpson's rule on a smooth velocity sampled at every cycle.
 
     ``∫ V dt ≈ (T/3) (V_{2n-2} + 4 V_{2n-1} + V_{2n})``; the rule's error is
@@ -228,12 +198,12 @@ class Method2Solution:
         Gravitation at the published positions (m/s²).
     """
 
-    dalpha: Array
-    dv: Array
-    c_b_e0: Array
-    v_e0: Array
-    r_e0: Array
-    g_e0: Array
+    dalpha: F64
+    dv: F64
+    c_b_e0: F64
+    v_e0: F64
+    r_e0: F64
+    g_e0: F64
 
 
 def method2(
@@ -244,7 +214,7 @@ def method2(
     gravity: GravityFn,
     iterations: int = 2,
     displacement: ArrayLike | None = None,
-    cycle_gravity: Callable[[Array, Array], Array] | None = None,
+    cycle_gravity: Callable[[F64, F64], F64] | None = None,
 ) -> Method2Solution:
     """Generate increments meeting the constraints with Savage 2020 Method 2, vectorized.
 
@@ -308,7 +278,7 @@ def method2(
     dv = np.empty_like(dalpha)
     r[0::2], v[0::2] = r_con[0::2], v_con[0::2]
 
-    def grav(x: Array, m: Array | int) -> Array:
+    def grav(x: F64, m: F64 | int) -> F64:
         return gravity(x) if cycle_gravity is None else cycle_gravity(x, np.asarray(m))
 
     g[0::2] = grav(r[0::2], np.arange(0, n_cycles + 1, 2))

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.scan_filter import LinearFilter, smooth_attitude_offset
 from strapdown_ros.core.threads import rowwise
 
@@ -30,7 +31,6 @@ __all__ = [
     "bending_sinusoids",
 ]
 
-Array = NDArray[np.float64]
 LongArray = NDArray[np.longdouble]
 
 _LD = np.longdouble
@@ -51,9 +51,9 @@ class OffsetHistory:
         ``C_{Bvar_m}^{Bref}``: mounting times scan, smoothed by Appendix D.
     """
 
-    lever_arm: Array
-    displacement: Array
-    c_bvar_bref: Array
+    lever_arm: F64
+    displacement: F64
+    c_bvar_bref: F64
 
 
 # -- the model ---------------------------------------------------------------------------------
@@ -63,15 +63,15 @@ class OffsetHistory:
 class Sinusoids:
     """``Σ_j amp_j sin(2π f_j t + φ_j)`` per axis; arrays (K, 3) (m, Hz, rad)."""
 
-    amplitude: Array
-    frequency: Array
-    phase: Array
+    amplitude: F64
+    frequency: F64
+    phase: F64
 
-    def __call__(self, t: Array) -> Array:
+    def __call__(self, t: F64) -> F64:
         """The sum at times ``t`` (s, (N,)): (N, 3) m (long ``t`` on two threads, same bits)."""
         return rowwise(self._sum, np.asarray(t, dtype=np.float64).reshape(-1))
 
-    def _sum(self, t: Array) -> Array:
+    def _sum(self, t: F64) -> F64:
         out = np.zeros((t.size, 3))
         buf = np.empty((t.size, 3))
         tt = t[:, None]
@@ -95,7 +95,7 @@ class RandomBending:
     ``bandwidth_hz`` B > 0, bit-reproducible from ``seed`` (numpy ``default_rng``).
     """
 
-    sigma_m: Array
+    sigma_m: F64
     bandwidth_hz: float
     seed: int = 0
     components: int = 64
@@ -135,7 +135,7 @@ def bending_sinusoids(
     )
 
 
-def _triangle(t: Array, amplitude: float, rate: float) -> Array:
+def _triangle(t: F64, amplitude: float, rate: float) -> F64:
     """0 → +A → −A → +A … at ``rate`` (A per s), continuous and piecewise linear."""
     period = 4.0 * amplitude / rate
     u = np.mod(t / period, 1.0)
@@ -168,10 +168,10 @@ class SegmentsScan:
     ``rates`` (K, 3) rad/s over ``durations`` (K,) s > 0, from t = 0 and the identity.
     """
 
-    durations: Array
-    rates: Array
+    durations: F64
+    rates: F64
 
-    def __call__(self, t: Array) -> LongArray:
+    def __call__(self, t: F64) -> LongArray:
         """``C_scan`` at times ``t`` (s, (N,)): (N, 3, 3) in long double."""
         c = np.empty((t.size, 3, 3), dtype=_LD)
         start, c_start = 0.0, np.eye(3, dtype=_LD)
@@ -197,7 +197,7 @@ class SweepScan:
     ``start`` (s; identity before).
     """
 
-    axis: Array
+    axis: F64
     amplitude: float  # rad, > 0
     rate: float  # rad/s, > 0
     start: float = 0.0  # s, >= 0
@@ -209,7 +209,7 @@ class SweepScan:
             raise ValueError("axis: must not be zero")
         object.__setattr__(self, "axis", axis / norm)
 
-    def __call__(self, t: Array) -> LongArray:
+    def __call__(self, t: F64) -> LongArray:
         """``C_scan`` at times ``t`` (s, (N,)): (N, 3, 3) in long double."""
         angle = _triangle(np.maximum(t - self.start, 0.0), self.amplitude, self.rate)
         return _axis_rotation(self.axis, angle)
@@ -231,7 +231,7 @@ class RasterScan:
     elevation_rate: float  # rad/s
     start: float  # s
 
-    def __call__(self, t: Array) -> LongArray:
+    def __call__(self, t: F64) -> LongArray:
         """``C_scan`` at times ``t`` (s, (N,)): (N, 3, 3) in long double."""
         s = np.maximum(t - self.start, 0.0)
         if self.rows == 1 or self.step == 0.0:
@@ -285,16 +285,16 @@ class OffsetModel:
         Advance the filter input by ``round(τ_Flt/T)`` cycles.
     """
 
-    lever_arm: Array = field(default_factory=lambda: np.zeros(3))
+    lever_arm: F64 = field(default_factory=lambda: np.zeros(3))
     bending: Sinusoids = field(default_factory=bending_sinusoids)
-    displacement: Array = field(default_factory=lambda: np.zeros(3))
-    mounting_rph: Array = field(default_factory=lambda: np.zeros(3))
+    displacement: F64 = field(default_factory=lambda: np.zeros(3))
+    mounting_rph: F64 = field(default_factory=lambda: np.zeros(3))
     scan: SegmentsScan | SweepScan | RasterScan | None = None
     filter: LinearFilter | None = None
     lag_compensation: bool = False
 
     @property
-    def mount(self) -> Array:
+    def mount(self) -> F64:
         """``C_mount`` (Bvar relative to Bref at zero scan), ``dcm_from_euler`` convention."""
         return self._mount_ld().astype(np.float64)
 
@@ -302,7 +302,7 @@ class OffsetModel:
         roll, pitch, yaw = self.mounting_rph
         return _axis_rotation(_Z, yaw) @ _axis_rotation(_Y, pitch) @ _axis_rotation(_X, roll)
 
-    def lever_arm_at(self, t: ArrayLike) -> Array:
+    def lever_arm_at(self, t: ArrayLike) -> F64:
         """``l^Bref(t)`` (m, Bref FRD) at times ``t`` (s, shape (N,)): constant plus bending."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
         return self.lever_arm + self.bending(t)

@@ -26,6 +26,8 @@ from strapdown_ros.core.series import f1, f2
 __all__ = [
     "C_FRD_TO_FLU",
     "C_NED_TO_ENU",
+    "as_matrices",
+    "as_vectors",
     "dcm_from_euler",
     "dcm_from_quat",
     "dcm_from_rotvec",
@@ -61,14 +63,16 @@ C_FRD_TO_FLU = np.diag([1.0, -1.0, -1.0])
 C_FRD_TO_FLU.setflags(write=False)
 
 
-def _vec(v: ArrayLike) -> NDArray[np.float64]:
+def as_vectors(v: ArrayLike) -> NDArray[np.float64]:
+    """``v`` as a float64 array of 3-vectors (..., 3); ValueError for another shape."""
     v = np.asarray(v, dtype=np.float64)
     if v.shape[-1:] != (3,):
         raise ValueError(f"expected an array of 3-vectors (..., 3), got shape {v.shape}")
     return v
 
 
-def _mat(c: ArrayLike) -> NDArray[np.float64]:
+def as_matrices(c: ArrayLike) -> NDArray[np.float64]:
+    """``c`` as a float64 array of 3x3 matrices (..., 3, 3); ValueError for another shape."""
     c = np.asarray(c, dtype=np.float64)
     if c.shape[-2:] != (3, 3):
         raise ValueError(f"expected an array of 3x3 matrices (..., 3, 3), got shape {c.shape}")
@@ -88,7 +92,7 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
     array (..., 3, 3)
         ``(v×)`` in the same frame (Savage 2020 notation ``(Δα×)``, eqs. (2)-(4)).
     """
-    v = _vec(v)
+    v = as_vectors(v)
     out = np.zeros(v.shape + (3,))
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     out[..., 0, 1], out[..., 0, 2] = -z, y
@@ -109,7 +113,7 @@ def vee(m: ArrayLike) -> NDArray[np.float64]:
     array (..., 3)
         ``½ [m32 - m23, m13 - m31, m21 - m12]``.
     """
-    m = _mat(m)
+    m = as_matrices(m)
     return 0.5 * np.stack(
         [m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]],
         axis=-1,
@@ -140,7 +144,7 @@ def dcm_from_rotvec(phi: ArrayLike) -> NDArray[np.float64]:
     -------
     array (..., 3, 3)
     """
-    phi = _vec(phi)
+    phi = as_vectors(phi)
     angle = np.linalg.norm(phi, axis=-1)
     turns = np.round(angle / (2.0 * np.pi))
     if np.any(turns):  # same rotation with the angle in [-π, π]: better conditioned
@@ -153,7 +157,7 @@ def dcm_from_rotvec(phi: ArrayLike) -> NDArray[np.float64]:
 
 def quat_from_rotvec(phi: ArrayLike) -> NDArray[np.float64]:
     """Quaternion ``[cos(φ/2), sin(φ/2) φ/|φ|]`` of a rotation vector (rad), scalar first."""
-    phi = _vec(phi)
+    phi = as_vectors(phi)
     half = 0.5 * np.linalg.norm(phi, axis=-1)
     # sin(h)/(2h) * phi with h = |phi|/2, exact near zero through f1.
     return np.concatenate([np.cos(half)[..., None], (0.5 * f1(half))[..., None] * phi], axis=-1)
@@ -207,7 +211,7 @@ def quat_from_dcm(c: ArrayLike) -> NDArray[np.float64]:
     Accurate to a few ε at every angle including 180°, where the trace method fails. The four
     products ``4 q_i q_j`` of the pivot's row are selected element-wise (no 4x4 table).
     """
-    c = _mat(c)
+    c = as_matrices(c)
     c00, c01, c02 = c[..., 0, 0], c[..., 0, 1], c[..., 0, 2]
     c10, c11, c12 = c[..., 1, 0], c[..., 1, 1], c[..., 1, 2]
     c20, c21, c22 = c[..., 2, 0], c[..., 2, 1], c[..., 2, 2]
@@ -320,7 +324,7 @@ def euler_from_dcm(
     Roll and heading in (-π, π], pitch in [-π/2, π/2] computed with atan2 (no loss of accuracy
     near ±90° pitch; at exactly ±90° roll is set so that heading carries the yaw-roll sum).
     """
-    c = _mat(c_b_n)
+    c = as_matrices(c_b_n)
     pitch = np.arctan2(-c[..., 2, 0], np.hypot(c[..., 2, 1], c[..., 2, 2]))
     roll = np.arctan2(c[..., 2, 1], c[..., 2, 2])
     heading = np.arctan2(c[..., 1, 0], c[..., 0, 0])
@@ -335,7 +339,7 @@ def euler_from_dcm(
 
 def ned_to_enu(v: ArrayLike) -> NDArray[np.float64]:
     """ENU coordinates of a vector given in NED (swap north/east, negate down). Exact."""
-    v = _vec(v)
+    v = as_vectors(v)
     return np.stack([v[..., 1], v[..., 0], -v[..., 2]], axis=-1)
 
 
@@ -346,7 +350,7 @@ def enu_to_ned(v: ArrayLike) -> NDArray[np.float64]:
 
 def frd_to_flu(v: ArrayLike) -> NDArray[np.float64]:
     """FLU body coordinates of a vector given in FRD body axes (negate y and z). Exact."""
-    v = _vec(v)
+    v = as_vectors(v)
     return v * np.array([1.0, -1.0, -1.0])
 
 
@@ -357,15 +361,15 @@ def flu_to_frd(v: ArrayLike) -> NDArray[np.float64]:
 
 def dcm_to_flu_enu(c_frd_ned: ArrayLike) -> NDArray[np.float64]:
     """``C_FLU^ENU`` from ``C_FRD^NED``: the ROS (REP-103) attitude from the core's. Exact."""
-    return C_NED_TO_ENU @ _mat(c_frd_ned) @ C_FRD_TO_FLU
+    return C_NED_TO_ENU @ as_matrices(c_frd_ned) @ C_FRD_TO_FLU
 
 
 def dcm_to_frd_ned(c_flu_enu: ArrayLike) -> NDArray[np.float64]:
     """``C_FRD^NED`` from ``C_FLU^ENU``: inverse of :func:`dcm_to_flu_enu`. Exact."""
-    return C_NED_TO_ENU @ _mat(c_flu_enu) @ C_FRD_TO_FLU
+    return C_NED_TO_ENU @ as_matrices(c_flu_enu) @ C_FRD_TO_FLU
 
 
 def orthonormality_error(c: ArrayLike) -> NDArray[np.float64]:
     """Largest absolute element of ``C Cᵀ - I`` (dimensionless), per matrix."""
-    c = _mat(c)
+    c = as_matrices(c)
     return np.max(np.abs(c @ np.swapaxes(c, -1, -2) - np.eye(3)), axis=(-2, -1))

@@ -56,9 +56,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.signal import lfilter
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.rotations import dcm_from_rotvec, rotvec_from_dcm
 
 __all__ = [
@@ -70,13 +71,12 @@ __all__ = [
     "smoothing_terms",
 ]
 
-Array = NDArray[np.float64]
 
 #: Allowed ``|Σ a_i + Σ b_i - 1|`` of eq. (D-3).
 D3_TOLERANCE = 1e-12
 
 
-def attitude_offset_increments(c_bvar_bref: ArrayLike) -> Array:
+def attitude_offset_increments(c_bvar_bref: ArrayLike) -> F64:
     """Rotation increments of an attitude offset, eq. (D-2).
 
     Parameters
@@ -94,7 +94,7 @@ def attitude_offset_increments(c_bvar_bref: ArrayLike) -> Array:
     return rotvec_from_dcm(np.swapaxes(c[:-1], -1, -2) @ c[1:])
 
 
-def _coefficients(values: Sequence[float] | ArrayLike, name: str) -> Array:
+def _coefficients(values: Sequence[float] | ArrayLike, name: str) -> F64:
     try:
         arr = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError):
@@ -181,7 +181,7 @@ class LinearFilter:
         # the tolerance absorbs the rounding of τ_Flt/T (e.g. 9.499999999999996 for n = 20)
         return math.floor(self.response_time(1.0) + 0.5 + 1e-9)
 
-    def apply(self, dbeta: ArrayLike) -> Array:
+    def apply(self, dbeta: ArrayLike) -> F64:
         """Filter increments with eq. (D-4), at rest (zero state) before the first one.
 
         Parameters
@@ -197,7 +197,7 @@ class LinearFilter:
         x = np.asarray(dbeta, dtype=np.float64)
         return lfilter(self.a, np.concatenate([[1.0], -self.b]), x, axis=0)
 
-    def gamma_numerator(self, shift: int = 0) -> Array:
+    def gamma_numerator(self, shift: int = 0) -> F64:
         """Numerator ``q`` of the filter ``Q(z)/(1 - B(z))`` from ``Δβ`` to ``γ`` (eq. (D-11)).
 
         With input advanced by ``k = shift`` cycles, ``γ = (z^k H - 1)/(1 - z⁻¹) Δβ``; delaying
@@ -239,9 +239,9 @@ class SmoothingTerms:
         Lag-compensation advance k (cycles) of the (D-4) input; 0 without compensation.
     """
 
-    dbeta: Array
-    dbeta_flt: Array
-    gamma: Array
+    dbeta: F64
+    dbeta_flt: F64
+    gamma: F64
     shift: int
 
 
@@ -289,7 +289,7 @@ def smoothing_terms(
 
 def smooth_attitude_offset(
     c_bvar_bref: ArrayLike, filt: LinearFilter, lag_compensation: bool = False
-) -> Array:
+) -> F64:
     """Smoothed attitude offset ``C_{Bvar/filt_m}^{Bref} = C_{Bvar_m}^{Bref} G_Cγ,m``.
 
     Eqs. (D-2), (D-4), (D-11), (D-9), (D-10); see the module notes for the conventions.

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-Array = NDArray[np.float64]
+from strapdown_ros.core.array_types import F64
 
 
 @dataclass(frozen=True)
@@ -49,11 +49,11 @@ class Stream:
 
     t0_ns: int
     period_ns: int
-    dalpha: Array
-    dv: Array
-    c_b_e0: Array
-    v_e0: Array
-    r_e0: Array
+    dalpha: F64
+    dv: F64
+    c_b_e0: F64
+    v_e0: F64
+    r_e0: F64
     gravity_model: str = "j2"
     e0_epoch_ns: int | None = None
 
@@ -82,7 +82,7 @@ class Stream:
         return self.period_ns * 1e-9
 
     @property
-    def t(self) -> Array:
+    def t(self) -> F64:
         """Times (s) of the truth samples since the E0 epoch, m = 0..M (``C_E^E0 = Rz(ω t)``).
 
         Computed from integer nanoseconds, so equal to ``t_m - t0`` exactly for a whole stream.

@@ -33,9 +33,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from strapdown_ros.core._compiled import matmul33
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.exact_update import g_matrices
 from strapdown_ros.core.gravity import gravitation, gravitation_first_order
 from strapdown_ros.core.method2 import attitude_increments, method2
@@ -52,12 +52,11 @@ __all__ = [
     "variation_constraints",
 ]
 
-Array = NDArray[np.float64]
 METHODS = (1, 2)
 GRAVITY_MODES = ("full", "first_order")
 
 
-def _mv(m: Array, v: Array) -> Array:
+def _mv(m: F64, v: F64) -> F64:
     return np.einsum("...ij,...j->...i", m, v)
 
 
@@ -75,9 +74,9 @@ class OffsetArrays:
         ``C_{Bvar_m}^{Bref}``: variation body to reference body.
     """
 
-    lever_arm: Array
-    displacement: Array
-    c_bvar_bref: Array
+    lever_arm: F64
+    displacement: F64
+    c_bvar_bref: F64
 
     @classmethod
     def zero(cls, n: int) -> OffsetArrays:
@@ -92,10 +91,10 @@ class OffsetArrays:
 class VariationConstraints:
     """The constraints of eqs. (5)-(7) and (10) at cycles m = 0..M_var (+ S at M_var + 1)."""
 
-    c_b_e0: Array  # (M_var+1, 3, 3) eq. (5)
-    r_e0: Array  # (M_var+1, 3) eqs. (6)-(7)
-    v_e0: Array  # (M_var+1, 3) eq. (10)
-    s_e0: Array  # (M_var+2, 3) eq. (7)
+    c_b_e0: F64  # (M_var+1, 3, 3) eq. (5)
+    r_e0: F64  # (M_var+1, 3) eqs. (6)-(7)
+    v_e0: F64  # (M_var+1, 3) eq. (10)
+    s_e0: F64  # (M_var+2, 3) eq. (7)
 
 
 def variation_constraints(
@@ -142,7 +141,7 @@ def variation_constraints(
     )
 
 
-def reference_pair_displacement(reference: Stream, g: Array, pairs: int) -> Array:
+def reference_pair_displacement(reference: Stream, g: F64, pairs: int) -> F64:
     """``R_{2n} - R_{2n-2}`` of a published stream from its increments (eq. (4) twice).
 
     Every term is small (velocity × T, Δv × T, g T²), so the result carries no rounding of
@@ -217,7 +216,7 @@ def generate_variation(
     ref = _window(reference, lead, cycles + 1)
     g_ref = gravitation(ref.r_e0, model)
 
-    def cycle_gravity(r: Array, m: Array) -> Array:
+    def cycle_gravity(r: F64, m: F64) -> F64:
         if gravity == "full":
             return gravitation(r, model)
         r_ref = ref.r_e0[m]
@@ -274,8 +273,8 @@ def _method1(
     con: VariationConstraints,
     cycles: int,
     cycle_gravity: object,
-    g_ref: Array,
-) -> tuple[Array, Array, Array]:
+    g_ref: F64,
+) -> tuple[F64, F64, F64]:
     """Savage 2020 eq. (9) with eqs. (3), (6): sequential in V (the recursion it is known for).
 
     ``Δv_m = (C_{m-1} G_R,m)^-1 [R_m - R_{m-1} - V_{m-1} T - (g_m + 2 g_{m-1}) T²/6] / T``,

@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.trajectory.samples import Samples, check_times, samples_from_arrays
 
 __all__ = [
@@ -28,7 +28,6 @@ __all__ = [
     "odometry_samples",
 ]
 
-Array = NDArray[np.float64]
 
 #: CSV columns understood by :func:`load_samples_csv`, by group (all of a group or none).
 CSV_COLUMNS: dict[str, tuple[str, ...]] = {
@@ -127,7 +126,7 @@ def load_samples_csv(
     def has(name: str) -> bool:
         return col(name) in index
 
-    def get(name: str) -> Array:
+    def get(name: str) -> F64:
         j = index[col(name)]
         out = np.empty(len(rows) - 1)
         for r, row in enumerate(rows[1:]):
@@ -142,7 +141,7 @@ def load_samples_csv(
                 raise fail(f"column {col(name)!r}, data row {r + 1}: NaN/inf value")
         return out
 
-    def group(key: str) -> list[Array] | None:
+    def group(key: str) -> list[F64] | None:
         names = CSV_COLUMNS[key]
         present = [has(n) for n in names]
         if not any(present):

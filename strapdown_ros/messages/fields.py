@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from strapdown_ros.core.array_types import F64, I64
+
 __all__ = [
     "COVARIANCE_NOT_PROVIDED",
     "ClockFields",
@@ -43,8 +45,6 @@ COVARIANCE_NOT_PROVIDED = "not_provided"
 _NS = 1_000_000_000
 _INT32_MIN, _INT32_MAX = -(2**31), 2**31 - 1
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 
 def _constant(value: object) -> bool:
@@ -281,11 +281,13 @@ def as_stamps(stamps_ns: ArrayLike) -> I64:
     return t.astype(np.int64, copy=False)
 
 
-def as_rows(a: ArrayLike, n: int, width: int, name: str) -> F64:
-    """``a`` as an (n, width) float64 array; ValueError naming ``name`` otherwise."""
+def as_rows(a: ArrayLike, n: int, width: int | tuple[int, ...], name: str) -> F64:
+    """``a`` as an (n, width) float64 array (a tuple ``width``: (n, *width), e.g. (n, 3, 3) for
+    matrices); ValueError naming ``name`` otherwise."""
+    shape = (n, *width) if isinstance(width, tuple) else (n, width)
     a = np.asarray(a, dtype=np.float64)
-    if a.shape != (n, width):
-        raise ValueError(f"{name}: expected shape ({n}, {width}), got {a.shape}")
+    if a.shape != shape:
+        raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
     return a
 
 

@@ -68,10 +68,7 @@ def imu_fields_from_increments(
         if orientation_covariance is None:
             orientation_covariance = COVARIANCE_NOT_PROVIDED
     else:
-        c = np.asarray(c_frd_ned, dtype=np.float64)
-        if c.shape != (n, 3, 3):
-            raise ValueError(f"c_frd_ned: expected shape ({n}, 3, 3), got {c.shape}")
-        q = quat_ros_from_dcm(dcm_to_flu_enu(c))
+        q = quat_ros_from_dcm(dcm_to_flu_enu(as_rows(c_frd_ned, n, (3, 3), "c_frd_ned")))
     return ImuFields(
         stamps_ns=t,
         frame_id=frame_id,

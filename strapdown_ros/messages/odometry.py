@@ -56,9 +56,7 @@ def odometry_fields_from_ecef(
     r = as_rows(r_e, n, 3, "r_e")
     v = as_rows(v_e, n, 3, "v_e")
     w = as_rows(omega_eb_b, n, 3, "omega_eb_b")
-    c = np.asarray(c_b_e, dtype=np.float64)
-    if c.shape != (n, 3, 3):
-        raise ValueError(f"c_b_e: expected shape ({n}, 3, 3), got {c.shape}")
+    c = as_rows(c_b_e, n, (3, 3), "c_b_e")
     v_b = (np.swapaxes(c, -1, -2) @ v[..., None])[..., 0]
     return OdometryFields(
         stamps_ns=t,

@@ -80,6 +80,11 @@ class AidingNode(BatchedInputNode):
         return self._started
 
     @property
+    def input_events(self) -> Any:
+        """The stage's input events (counted in the end-of-run summary)."""
+        return self.stream.events
+
+    @property
     def finished(self) -> bool:
         """The scenario's last truth message has been processed."""
         last = self.stream.last_truth_ns

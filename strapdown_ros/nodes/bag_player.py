@@ -2,21 +2,25 @@
 
 Every message of the selected topics is published raw (the bag's CDR payload, nothing is
 deserialized) at wall time ``start + (t - t_begin) / rate_factor`` (monotonic clock), where
-``t`` is its log time, ``t_begin`` = the bag's first log time + ``start_offset_s`` and
-``start`` = when the first message goes out. The player sleeps until shortly before each
-deadline while servicing rclpy, then sleeps precisely; a separate process reads the bag ahead
+``t`` is its log time, ``t_begin`` = the bag's first log time + ``start_offset_s`` and ``start``
+= when the first message goes out; with ``duration_s`` only the window ``[t_begin, t_begin +
+duration_s]`` is played. The player sleeps until shortly before each deadline while servicing
+rclpy, then sleeps precisely; a separate process reads the bag ahead
 (:class:`~strapdown_ros.bag.playback.ReaderProcess`) so that parsing a chunk never delays a
 publication. It publishes ``/clock`` (``rosgraph_msgs/Clock``, the log time, before the first
-message of each new log time) unless the bag itself has the clock topic, which is then played
-as recorded. With ``loop`` it starts over after the last message (one mean message interval
-later) until stopped. Topics can be selected (``topics``) and renamed (``remap``; ROS' own
-``-r from:=to`` works too); publishers take the reliability and durability the bag recorded.
+message of each new log time, or with ``clock_rate_hz`` before the first message of each
+``1/clock_rate_hz`` of bag time: :class:`~strapdown_ros.bag.playback.ClockTicks`) unless the bag
+itself has the clock topic, which is then played as recorded. With ``loop`` it starts over after
+the last message (one mean message interval later) until stopped. Topics can be selected
+(``topics``) and renamed (``remap``; ROS' own ``-r from:=to`` works too); publishers take the
+reliability and durability the bag recorded.
 
 At the end (or on SIGINT/SIGTERM) it logs the messages per topic and the pacing error — publish
-time minus scheduled time — as p50, p99 and max. A bag it cannot read (missing directory or
-metadata, truncated or interrupted data file, unknown topic) is refused before anything is
-published, with the reason; an empty bag is reported and nothing is published. Parameters:
-docs/recording.md.
+time minus scheduled time — as p50, p99 and max; while it plays, it warns (at most once a
+second) when publications are later than ``pacing_warn_ms``. A bag it cannot read (missing
+directory or metadata, truncated or interrupted data file, unknown topic) is refused before
+anything is published, with the reason; an empty bag is reported and nothing is published.
+Parameters: docs/recording.md.
 
 Exit status: 0 played (also when stopped by a signal, or nothing to play), 1 failure while
 playing (e.g. the data turned out corrupt midway), 2 invalid parameter or unreadable bag.
@@ -38,6 +42,8 @@ from strapdown_ros.bag.playback import (
     CLOCK_MSGTYPE,
     PASS_END,
     BagSource,
+    ClockTicks,
+    PacingWatch,
     PlayTopic,
     ReaderProcess,
     clock_payload,
@@ -81,11 +87,21 @@ class BagPlayer(SignalStop, Node):
         self.start_offset_s = declare_number(
             self, "start_offset_s", 0.0, "skip this many seconds from the bag's start"
         )
+        self.duration_s = declare_number(
+            self, "duration_s", 0.0, "play this many seconds of the bag from the start; 0: all"
+        )
         self.loop = declare_bool(self, "loop", False, "start over at the end, until stopped")
         topics = declare_string_array(self, "topics", "topics to play (default: all)")
         remaps = declare_string_array(self, "remap", "renames FROM:=TO")
         self.publish_clock = declare_bool(self, "publish_clock", True, "publish /clock")
         self.clock_topic = declare_string(self, "clock_topic", "/clock", "topic of the clock")
+        self.clock_rate_hz = declare_number(
+            self, "clock_rate_hz", 0.0, "/clock ticks per second of bag time; 0: every log time"
+        )
+        self.pacing_warn_ms = declare_number(
+            self, "pacing_warn_ms", 50.0, "warn while playing when publications are later "
+            "than this; 0: never",
+        )  # fmt: skip
         depth = declare_int(self, "qos_depth", 1000, "publisher history depth", minimum=1)
         self.wait_for_subscribers = declare_int(
             self, "wait_for_subscribers", 0, "subscriptions to wait for on every topic", 0
@@ -106,8 +122,9 @@ class BagPlayer(SignalStop, Node):
             )
         if not bag:
             raise ParameterError("bag", "is required (the bag directory to play)")
-        if self.start_offset_s < 0:
-            raise ParameterError("start_offset_s", f"must be >= 0, got {self.start_offset_s}")
+        for name in ("start_offset_s", "duration_s", "clock_rate_hz", "pacing_warn_ms"):
+            if getattr(self, name) < 0:
+                raise ParameterError(name, f"must be >= 0, got {getattr(self, name):g}")
         remap = _parse_remaps(remaps)
         self.selected = bool(topics)
         try:
@@ -116,6 +133,9 @@ class BagPlayer(SignalStop, Node):
             raise ParameterError("bag", str(exc)) from exc
 
         self.begin_ns = self.source.start_ns + round(self.start_offset_s * 1e9)
+        #: end of the window (exclusive; None: the bag's end): [begin, begin + duration]
+        self.stop_ns = None if self.duration_s == 0 else self.begin_ns + round(
+            self.duration_s * 1e9) + 1  # fmt: skip
         if self.source.message_count and self.begin_ns > self.source.end_ns:
             span = (self.source.end_ns - self.source.start_ns) * 1e-9
             self.source.close()
@@ -160,7 +180,8 @@ class BagPlayer(SignalStop, Node):
         self.get_logger().info(
             f"bag {src.path}: {src.message_count} messages on {len(self.played)} topic(s), "
             f"{(src.end_ns - src.start_ns) * 1e-9:.3f} s; rate_factor {self.rate_factor:g}, "
-            f"start_offset_s {self.start_offset_s:g}, loop {self.loop}; topics "
+            f"start_offset_s {self.start_offset_s:g}, duration_s {self.duration_s:g}, "
+            f"loop {self.loop}; topics "
             + ", ".join(
                 t.topic if t.topic == t.out_topic else f"{t.topic} -> {t.out_topic}"
                 for t in self.played
@@ -181,8 +202,9 @@ class BagPlayer(SignalStop, Node):
                 )
                 return EXIT_OK
             reader = ReaderProcess(
-                self.source, self.begin_ns, loop=self.loop, high_water=self.read_ahead
-            )
+                self.source, self.begin_ns, self.stop_ns, loop=self.loop,
+                high_water=self.read_ahead,
+            )  # fmt: skip
             try:
                 status = self._run_with(executor, reader)
             finally:
@@ -239,6 +261,11 @@ class BagPlayer(SignalStop, Node):
         clock_pub = self.clock_pub
         paced = self.rate_factor > 0
         pacer: Pacer | None = None
+        ticks = ClockTicks(
+            round(1e9 / self.clock_rate_hz) if self.clock_rate_hz else 0, self.begin_ns
+        )
+        watch = PacingWatch(self.pacing_warn_ms * 1e-3 if paced else 0.0)
+        warn = self.get_logger().warning
         offset_ns = 0  # added to the log times of the current pass (loop)
         gap_ns = 0
         last_t: int | None = None
@@ -258,6 +285,7 @@ class BagPlayer(SignalStop, Node):
                     gap_ns = span // (distinct - 1) if distinct > 1 else 1_000_000_000
                 offset_ns += last_t - self.begin_ns + gap_ns
                 last_t = None
+                ticks.restart(self.begin_ns)
                 continue
             k, t, data = item  # type: ignore[misc]
             pub = pubs[k]
@@ -270,11 +298,15 @@ class BagPlayer(SignalStop, Node):
             if self._stop_reason is not None:
                 break
             if paced:
-                errors.append(time.monotonic() - pacer.due(stamp))
+                now = time.monotonic()
+                errors.append(now - pacer.due(stamp))
+                text = watch.observe(errors[-1], now)
+                if text is not None:
+                    warn(text)
             if t != last_t:
                 if not self.loops:
                     distinct += 1
-                if clock_pub is not None:
+                if clock_pub is not None and ticks.due(t):
                     clock_pub.publish(clock_payload(t))
                     self.clock_count += 1
             pub.publish(data)

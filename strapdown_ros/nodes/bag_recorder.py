@@ -2,7 +2,8 @@
 
 It subscribes raw (serialized payloads, nothing is deserialized) to a configured topic list —
 by default every topic of docs/interface.md §4 the scenario produces (:func:`strapdown_ros.topics.
-produced_topics`) — and writes the payloads with :class:`~strapdown_ros.bag.recording.Recording`
+produced_topics`) that its ``recording.include``/``recording.exclude`` select — and writes
+the payloads with :class:`~strapdown_ros.bag.recording.Recording`
 into an mcap (default) or sqlite3 bag: Fast DDS' trailing alignment padding is stripped and the
 log time is the header stamp, so the bag's messages are byte-identical to what
 ``strapdown-sim generate`` writes for the same scenario. Topics are subscribed when their first
@@ -37,7 +38,8 @@ from strapdown_ros.bag.incremental import IncrementalBagWriter
 from strapdown_ros.bag.payload import PayloadError, PayloadInspector
 from strapdown_ros.bag.qos import DEFAULT_QOS, offered_profiles
 from strapdown_ros.bag.recording import LOG_TIMES, Handler, Recording
-from strapdown_ros.bag.writer import STORAGES, BagWriteError, looks_like_bag
+from strapdown_ros.bag.selection import SelectionError, TopicSelection
+from strapdown_ros.bag.writer import STORAGES, BagWriteError, check_compression, looks_like_bag
 from strapdown_ros.config import load_scenario
 from strapdown_ros.nodes._tf import tf_unavailable
 from strapdown_ros.nodes.lifecycle import EXIT_FAILURE, EXIT_OK, run_node
@@ -61,6 +63,8 @@ NODE_NAME = "bag_recorder"
 RELIABILITIES = ("auto", "reliable", "best_effort")
 #: After a stop request: spin until a pass brings no message (but at most drain_timeout_s).
 QUIET_S = 0.05
+#: Messages "taken" reported for a topic the recorder does not record (flow control).
+NOT_HELD_BACK = 1 << 60
 
 
 @dataclass
@@ -85,6 +89,10 @@ class BagRecorder(SignalStop, Node):
         topic_specs = declare_string_array(self, "topics", "topics to record: NAME[=pkg/msg/Type]")
         output = declare_string(self, "output", "", "bag directory to write (required)")
         storage = declare_string(self, "storage", "", "mcap | sqlite3 (default: scenario's)")
+        compression = declare_string(
+            self, "compression", "", "MCAP chunk compression none | zstd | lz4 (default: "
+            "scenario's, else none)",
+        )  # fmt: skip
         self.force = declare_bool(self, "force", False, "replace an existing bag directory")
         self.flush_period_s = declare_number(self, "flush_period_s", 1.0, "seconds per flush")
         self.fsync = declare_bool(self, "fsync", False, "fsync the data file at every flush")
@@ -146,16 +154,31 @@ class BagRecorder(SignalStop, Node):
         if storage not in STORAGES:
             raise ParameterError("storage", f"must be one of: mcap, sqlite3; got {storage!r}")
         self.storage = storage
+        if compression == "":
+            compression = scenario.recording.compression if scenario is not None else "none"
+        try:
+            check_compression(storage, compression)
+        except BagWriteError as exc:
+            raise ParameterError("compression", str(exc)) from exc
+        self.compression = compression
         self.output = Path(output).absolute()
         if self.output.exists() and not self.force:
             raise ParameterError("output", f"{self.output} exists already (set force:=true)")
         if self.output.exists() and not _replaceable(self.output):
             raise ParameterError("output", f"{self.output} exists and is not a bag directory")
 
+        #: the scenario's topics that recording.include/exclude leave out
+        self._excluded: list[str] = []
         if topic_specs:
             wanted = _parse_topics(topic_specs)
-        elif plan is not None:
-            wanted = plan.topic_types()
+        elif plan is not None:  # the scenario's topics that recording.include/exclude select
+            types = plan.topic_types()
+            try:
+                selected = TopicSelection.of_recording(plan.scenario.recording).check(types)
+            except SelectionError as exc:
+                raise ParameterError("scenario", str(exc)) from exc
+            wanted = {t: types[t] for t in selected}
+            self._excluded = [t for t in types if t not in wanted]
         else:
             wanted = dict(spec_topics())
         # Without tf2_msgs, /tf and /tf_static cannot be received: derived here from the recorded
@@ -194,7 +217,8 @@ class BagRecorder(SignalStop, Node):
         #: [the node's clock follows /clock (use_sim_time)], refreshed at every discovery pass.
         self._sim_time = [self.get_clock().ros_time_is_active]
         self.get_logger().info(
-            f"recording {len(self.topics)} topic(s) into {self.output} ({self.storage}), "
+            f"recording {len(self.topics)} topic(s) into {self.output} ({self.storage}"
+            + (f", {self.compression} chunks" if self.compression != "none" else "") + "), "
             f"flush every {self.flush_period_s:g} s: " + ", ".join(self.topics)
         )
 
@@ -331,6 +355,7 @@ class BagRecorder(SignalStop, Node):
             writer = IncrementalBagWriter(
                 self.output,
                 storage=self.storage,
+                compression=self.compression,
                 force=self.force,
                 custom_data=self.custom_data,
                 fsync=self.fsync,
@@ -377,7 +402,11 @@ class BagRecorder(SignalStop, Node):
             from strapdown_ros.nodes.flow import ProgressReporter
 
             stats = recording.stats
-            reporter = ProgressReporter(self, lambda: ({t: s.count for t, s in stats.items()}, {}))
+            # the topics it leaves out it never holds back (a flow gate needs a consumer each)
+            free = dict.fromkeys(self._excluded, NOT_HELD_BACK)
+            reporter = ProgressReporter(
+                self, lambda: ({**free, **{t: s.count for t, s in stats.items()}}, {})
+            )
         while self._stop_reason is None:
             executor.spin_once(timeout_sec=0.05)
             now = time.monotonic()

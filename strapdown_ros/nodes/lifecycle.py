@@ -1,8 +1,8 @@
 """A node's life: ``main`` (init, build, run, clean shutdown), its executor, when it stops, and
 the drain of its publishers at the end.
 
-Exit statuses are those of ``strapdown-sim``: 0 done (or stopped by SIGINT/SIGTERM), 1 failure
-while running, 2 invalid parameter or scenario.
+Exit statuses are those of ``strapdown-sim``: 0 done (or stopped by SIGINT/SIGTERM/SIGHUP), 1
+failure while running, 2 invalid parameter or scenario.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from strapdown_ros.nodes.parameters import (
     declare_number,
     declare_string,
 )
+from strapdown_ros.nodes.signals import STOP_SIGNALS, hangup_as_terminate
 
 __all__ = [
     "EXECUTORS",
@@ -87,9 +88,9 @@ def _interrupted_summary(node: Any, logger: Any) -> None:
 
 def _shut_down(node: Any, executor: Executor | None) -> None:
     """Remove the node from its executor, destroy it, shut rclpy down (signals ignored)."""
-    # A second SIGINT/SIGTERM during the clean-up must not end in a traceback.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    # A second SIGINT/SIGTERM/SIGHUP during the clean-up must not end in a traceback.
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
     if executor is not None and node is not None:
         executor.remove_node(node)
         executor.shutdown()
@@ -102,8 +103,8 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
     """Entry point shared by the nodes: init, build, ``node.run(executor)``, clean shutdown.
 
     The executor is chosen by the node parameter ``executor`` (:func:`make_executor`; default
-    ``events``). Exit status: 0 done or stopped by SIGINT/SIGTERM, 1 failure while running, 2
-    invalid parameter or scenario (the message names it).
+    ``events``). Exit status: 0 done or stopped by SIGINT/SIGTERM/SIGHUP, 1 failure while
+    running, 2 invalid parameter or scenario (the message names it).
     """
     from strapdown_ros.config import ScenarioError
 
@@ -112,6 +113,7 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
     except Exception as exc:  # rcl's RCLError: e.g. an unparsable --ros-args rule
         print(f"{name}: invalid command-line arguments: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    hangup_as_terminate()  # rclpy handles SIGINT and SIGTERM; SIGHUP the same way
     logger = rclpy.logging.get_logger(name)
     node = None
     executor: Executor | None = None

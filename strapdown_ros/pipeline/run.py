@@ -14,7 +14,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from strapdown_ros.config import load_scenario
+from strapdown_ros.bag.selection import TopicSelection
+from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.pipeline.processes import (
     STOP_GRACE_S,
     Child,
@@ -25,7 +26,7 @@ from strapdown_ros.pipeline.processes import (
 )
 from strapdown_ros.pipeline.result import PipelineResult, read_trajectory_summary
 from strapdown_ros.plan import Plan, resolve_plan
-from strapdown_ros.plan.chain import live_graph
+from strapdown_ros.plan.chain import live_graph, offline_only
 
 __all__ = ["RECORDER_GRACE_S", "STARTUP_TIMEOUT_S", "run_pipeline", "say_to_stderr"]
 
@@ -78,6 +79,13 @@ def run_pipeline(
     out = Path(out)
     check_out(out, force)
     plan = resolve_plan(scenario)
+    offline = offline_only(plan)
+    if offline:
+        raise ScenarioError(
+            offline[0],
+            f"the scenario's {', '.join(offline)} section(s) run in `strapdown-sim generate` "
+            "only: no node runs them live yet (remove them for `run`)",
+        )
     if flow_control is None:
         flow_control = rate_factor > 1 or rate_factor <= 0
     if timeout_s is None:
@@ -124,6 +132,10 @@ class _LiveRun:
         subscribers before it subscribes), the source (first in chain order) last; return the
         source."""
         nodes, self.subscriptions = live_graph(self.plan)
+        selection = TopicSelection.of_recording(self.plan.scenario.recording)
+        for topic in self.subscriptions:  # the recorder subscribes to the selected ones only
+            if topic in self.plan.topics and not selection.selects(topic):
+                self.subscriptions[topic] -= 1
         source, *downstream = nodes
         self.children.start("bag_recorder", *self._recorder_params())
         node_params = ["qos_depth:=10000"]
@@ -208,7 +220,9 @@ class _LiveRun:
         result = PipelineResult(
             out=self.out,
             counts={t: len(d) for t, d in contents.topics.items()},
-            expected=self.plan.counts(),
+            expected=TopicSelection.of_recording(self.plan.scenario.recording).counts(
+                self.plan.counts()
+            ),  # what the recorder records: the topics recording.include/exclude select
             elapsed_s=time.monotonic() - t_start,
             duration_s=self.plan.duration_s,
             domain_id=domain,

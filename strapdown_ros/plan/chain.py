@@ -32,6 +32,7 @@ __all__ = [
     "link",
     "links_for",
     "live_graph",
+    "offline_only",
     "offline_stages",
 ]
 
@@ -186,6 +187,52 @@ def _aiding_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
     return AidingStage(plan.scenario, plan.aiding)
 
 
+# -- aided: the error-state Kalman filter on the measured IMU and the aiding sensors ----------
+
+
+def _aided_enabled(scenario: Scenario) -> bool:
+    return getattr(scenario, "aided", None) is not None
+
+
+def _aided_inputs(plan: Plan) -> tuple[str, ...]:
+    from strapdown_ros.stages.aided import aided_input_topics
+
+    return tuple(aided_input_topics(plan.scenario))
+
+
+def _aided_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
+    from strapdown_ros.stages.aided import aided_topic_plans
+
+    return {p.topic: p for p in aided_topic_plans(plan.scenario, plan.cycles)}
+
+
+def _aided_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
+    from strapdown_ros.stages.aided import AidedStage
+
+    return AidedStage(plan.scenario)
+
+
+# -- timing: sensor timing errors on the published IMU and aiding messages ----------------------
+
+
+def _timing_inputs(plan: Plan) -> tuple[str, ...]:
+    from strapdown_ros.stages.timing import timed_topics
+
+    return tuple(t for t in timed_topics(plan) if t in plan.topics)
+
+
+def _timing_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
+    from strapdown_ros.stages.timing import timing_topic_plans
+
+    return {p.topic: p for p in timing_topic_plans(plan, upstream)}
+
+
+def _timing_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
+    from strapdown_ros.stages.timing import TimingStage
+
+    return TimingStage(plan)
+
+
 # -- tf: TF, map-frame odometry and increments, derived from every other link's outputs ---------
 
 
@@ -222,6 +269,9 @@ CHAIN: tuple[Link, ...] = (
          _navigator_outputs, _navigator_stage),  # fmt: skip
     Link("aiding", "aiding_node", lambda s: s.aiding is not None and bool(s.aiding.sensors()),
          _aiding_inputs, _aiding_outputs, _aiding_stage),  # fmt: skip
+    Link("aided", None, _aided_enabled, _aided_inputs, _aided_outputs, _aided_stage),
+    Link("timing", None, lambda s: s.timing is not None and bool(s.timing.sensors()),
+         _timing_inputs, _timing_outputs, _timing_stage),  # fmt: skip
     Link("tf", None, _always, _none, _tf_outputs, _tf_stage),
 )
 
@@ -296,6 +346,11 @@ class LiveNode:
     @property
     def published(self) -> tuple[str, ...]:
         return self.outputs + self.derived
+
+
+def offline_only(plan: Plan) -> list[str]:
+    """The enabled links no node runs live (``tf`` excepted: every node derives its own)."""
+    return [item.name for item in enabled_links(plan) if item.node is None and item.name != "tf"]
 
 
 def live_graph(plan: Plan) -> tuple[list[LiveNode], dict[str, int]]:

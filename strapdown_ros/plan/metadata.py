@@ -12,8 +12,9 @@ def bag_custom_data(plan: Plan) -> dict[str, str]:
 
     ``generator``, ``scenario`` (name), ``rate_hz``, the gravitation model and, for the sections
     the scenario has, ``variation.method`` / ``variation.gravity``, ``navigator.algorithm`` /
-    ``navigator.mode`` and ``imu_errors.preset`` / ``imu_errors.seed``; ``strapdown-sim
-    report`` names the variation method from it. Written by ``generate`` and ``bag_recorder``.
+    ``navigator.mode`` / ``navigator.imu_topic`` and ``imu_errors.preset`` /
+    ``imu_errors.seed``; ``strapdown-sim report`` names the variation method from it. Written
+    by ``generate`` and ``bag_recorder``.
     """
     scenario = plan.scenario
     data = {
@@ -28,6 +29,8 @@ def bag_custom_data(plan: Plan) -> dict[str, str]:
     nav = plan.navigator
     if nav is not None:
         data["navigator.algorithm"], data["navigator.mode"] = nav.algorithm, str(nav.mode)
+        topics = scenario.recording.topics
+        data["navigator.imu_topic"] = nav.imu_topic or topics["variation_imu"]
     if scenario.imu_errors is not None:
         for key in ("preset", "seed"):  # the ones the file gives
             if key in scenario.imu_errors.model_fields_set:

@@ -101,6 +101,7 @@ def write_report(
     *,
     compare: Sequence[str | os.PathLike[str]] = (),
     exactness: bool = True,
+    gravity_model: str | None = None,
 ) -> ReportResult:
     """Write ``report.md`` and the PNG plots of ``bag`` into ``out`` (default ``bag/report``).
 
@@ -117,6 +118,8 @@ def write_report(
     exactness : bool
         Re-check the docs/interface.md §3 rule on every Imu/Odometry pair (cheap: ~0.2 s per 120 000
         cycles).
+    gravity_model : {"j2", "spherical"}, optional
+        The model of the re-check; default: the one the bag's metadata records (else j2).
 
     Raises
     ------
@@ -128,7 +131,7 @@ def write_report(
     from strapdown_ros.report import plots, summary
 
     start = time.perf_counter()
-    data = load_bag(bag, exactness=exactness)
+    data = load_bag(bag, exactness=exactness, gravity_model=gravity_model)
     others = [load_bag(p, exactness=False, allan=False, odometry_only=True) for p in compare]
     out_dir = Path(out) if out is not None else Path(bag) / "report"
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -158,10 +161,12 @@ def write_report(
     else:
         result.omitted["attitude_velocity"] = "no Odometry topic (`P/odom`)"
     if plots.imu_list(data):
-        draw("imu", "imu.png", "Published angular rate and specific force, body FLU axes.",
-             plots.plot_imu, data)  # fmt: skip
+        draw("imu", "imu.png",
+             "Published angular rate and specific force of every IMU (a measured one beside "
+             "its ideal twin), each in its own FLU axes, named by the vehicle direction each "
+             "axis points to as mounted.", plots.plot_imu, data)  # fmt: skip
     else:
-        result.omitted["imu"] = "no ideal Imu topic (`P/imu`)"
+        result.omitted["imu"] = "no Imu topic"
 
     # --- exactness
     if data.residuals:

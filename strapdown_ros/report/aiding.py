@@ -21,15 +21,14 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import BagContents
 from strapdown_ros.config.aiding import AIDING_TOPICS
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, geodetic_to_ecef
 
 __all__ = ["AidingError", "aiding_errors", "aiding_table", "plot_aiding"]
 
-F64 = NDArray[np.float64]
 
 _SENSOR_OF_TOPIC = {
     AIDING_TOPICS["gnss_fix"]: "gnss",

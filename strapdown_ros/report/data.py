@@ -26,10 +26,11 @@ import yaml
 from numpy.typing import NDArray
 
 from strapdown_ros.bag.reader import BagContents, read_bag
+from strapdown_ros.checks import CheckSettings, check_pair, check_settings, is_ecef
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic, ned_velocity_from_ecef
 from strapdown_ros.core.exact_update import Residuals
-from strapdown_ros.core.exactness import stream_residuals
-from strapdown_ros.core.rotations import euler_from_dcm
+from strapdown_ros.core.rotations import euler_from_dcm, rotation_angle
 from strapdown_ros.messages import (
     ImuFields,
     NavSatFixFields,
@@ -37,7 +38,6 @@ from strapdown_ros.messages import (
     Vector3StampedFields,
     navsatfix_geodetic,
     odometry_state,
-    stream_from_messages,
 )
 
 __all__ = [
@@ -51,7 +51,6 @@ __all__ = [
     "load_bag",
 ]
 
-F64 = NDArray[np.float64]
 
 ODOMETRY = "nav_msgs/msg/Odometry"
 NAVSATFIX = "sensor_msgs/msg/NavSatFix"
@@ -83,7 +82,7 @@ class StreamData:
 
     @property
     def label(self) -> str:
-        return self.prefix.strip("/") or self.prefix
+        return self.prefix.strip("/") or "root"
 
 
 @dataclass
@@ -97,6 +96,11 @@ class ImuData:
     accel: F64  #: (N, 3) m/s² FLU (Δv/T)
     gyro_var: F64 | None  #: (3,) mean diagonal of angular_velocity_covariance, (rad/s)²
     accel_var: F64 | None  #: (3,) mean diagonal of linear_acceleration_covariance, (m/s²)²
+    frame_id: str = ""
+    measured: bool = False  #: an IMU error model's output (``P/imu_measured``)
+    #: The IMU's FLU axes named by the vehicle direction each points to as mounted
+    #: (:func:`mount_axis_labels`); plain axis names when the mount is unknown.
+    axis_labels: tuple[str, str, str] = ("x", "y", "z")
 
     @property
     def period_s(self) -> float:
@@ -155,6 +159,10 @@ class BagData:
     errors: dict[str, ErrorSet] = field(default_factory=dict)
     measured: dict[str, MeasuredImu] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: Imu topics outside the ``P/imu`` / ``P/imu_measured`` names (e.g. a robot's
+    #: ``/imu/data``), by topic: plotted, not checked.
+    other_imus: dict[str, ImuData] = field(default_factory=dict)
+    settings: CheckSettings | None = None  #: how the streams were verified
 
     @property
     def name(self) -> str:
@@ -242,7 +250,7 @@ def _covariance_diagonal(cov: F64) -> F64 | None:
     return diag if np.any(diag > 0) else None
 
 
-def _imu(topic: str, f: ImuFields, start: int) -> ImuData:
+def _imu(topic: str, f: ImuFields, start: int, measured: bool = False) -> ImuData:
     return ImuData(
         topic=topic,
         t=_seconds(f.stamps_ns, start),
@@ -251,6 +259,8 @@ def _imu(topic: str, f: ImuFields, start: int) -> ImuData:
         accel=np.asarray(f.linear_acceleration, dtype=np.float64),
         gyro_var=_covariance_diagonal(f.angular_velocity_covariance),
         accel_var=_covariance_diagonal(f.linear_acceleration_covariance),
+        frame_id=str(getattr(f, "frame_id", "")),
+        measured=measured,
     )
 
 
@@ -295,13 +305,22 @@ def _odometry_topics(path: Path) -> list[str] | None:
 
 
 def load_bag(
-    path: str | Path, *, exactness: bool = True, allan: bool = True, odometry_only: bool = False
+    path: str | Path,
+    *,
+    exactness: bool = True,
+    allan: bool = True,
+    odometry_only: bool = False,
+    gravity_model: str | None = None,
 ) -> BagData:
     """Read a bag and derive the report's data (see the module docstring for the roles).
 
     ``odometry_only`` reads only the Odometry topics (what a comparison needs; faster).
+    ``gravity_model``: the model the exactness re-check uses (default: the bag's metadata's,
+    :func:`strapdown_ros.checks.check_settings`). Odometry whose positions are not ECEF (a
+    robot's ``odom`` frame) is listed in ``notes``, not drawn as a trajectory.
     Raises :class:`~strapdown_ros.bag.reader.BagReadError` for an unreadable bag and
-    :class:`ReportError` for a bag without any topic the report understands.
+    :class:`ReportError` for a bag without any topic the report understands (or a gravity
+    model it cannot use).
     """
     topics = _odometry_topics(Path(path)) if odometry_only else None
     contents = read_bag(path, topics)
@@ -315,6 +334,12 @@ def load_bag(
     lasts = [int(np.max(d.fields.stamps_ns)) for d in typed.values()]  # type: ignore[attr-defined]
     start = min(firsts)
     data = BagData(Path(path), contents, start, max(lasts))
+    from strapdown_ros.checks.settings import SettingsError
+
+    try:
+        data.settings = check_settings(contents.custom_data, gravity_model)
+    except SettingsError as exc:
+        raise ReportError(str(exc)) from None
 
     by_prefix: dict[str, dict[str, str]] = {}
     for topic, d in typed.items():
@@ -323,12 +348,23 @@ def load_bag(
 
     for prefix, leaves in by_prefix.items():
         odom_t, fix_t = f"{prefix}/odom", f"{prefix}/fix"
-        if leaves.get("odom") == ODOMETRY:
+        ecef = leaves.get("odom") == ODOMETRY and is_ecef(odometry_state(contents[odom_t]).r_e)
+        if leaves.get("odom") == ODOMETRY and not ecef:
+            frame = getattr(contents[odom_t], "frame_id", "?")
+            data.notes.append(
+                f"`{odom_t}`: Odometry in frame `{frame}` with positions that are not ECEF "
+                "(a local frame): not drawn as a trajectory, not checked"
+            )
+        if ecef:
             data.streams[prefix] = _stream_from_odometry(prefix, odom_t, contents[odom_t], start)
         elif leaves.get("fix") == NAVSATFIX:
             data.streams[prefix] = _stream_from_fix(prefix, fix_t, contents[fix_t], start)
         if leaves.get("imu") == IMU:
             data.imus[prefix] = _imu(f"{prefix}/imu", contents[f"{prefix}/imu"], start)
+        for leaf, ty in leaves.items():
+            if ty == IMU and leaf not in ("imu", "imu_measured"):
+                topic = f"{prefix}/{leaf}"
+                data.other_imus[topic] = _imu(topic, contents[topic], start)
 
     # Navigator errors: P/error/{position,velocity,attitude}
     for prefix, leaves in by_prefix.items():
@@ -345,26 +381,88 @@ def load_bag(
             data.errors[owner] = es
 
     if exactness:
+        model = data.settings.gravity_model
         for prefix, imu in data.imus.items():
             odom_t = f"{prefix}/odom"
             if odom_t not in typed or is_navigator(prefix):
                 continue
-            try:
-                stream = stream_from_messages(contents[imu.topic], contents[odom_t])
-                data.residuals[prefix] = (f"{imu.topic} + {odom_t}", stream_residuals(stream))
-            except ValueError as exc:  # stamps do not pair up: not a generated stream
-                data.residuals[prefix] = (f"{imu.topic} + {odom_t}", f"not checked: {exc}")
+            v = check_pair(contents, imu.topic, odom_t, model)
+            data.residuals[prefix] = (v.pair, v.residuals or f"not checked: {v.reason}")
 
     for prefix, leaves in by_prefix.items():
         if leaves.get("imu_measured") != IMU:
             continue
         topic = f"{prefix}/imu_measured"
-        meas = _imu(topic, contents[topic], start)
+        meas = _imu(topic, contents[topic], start, measured=True)
         if not allan:
             data.measured[prefix] = MeasuredImu(meas, data.imus.get(prefix))
             continue
         data.measured[prefix] = _measured_imu(meas, data.imus.get(prefix))
+    _label_axes(data)
     return data
+
+
+# ------------------------------------------------------------------------------------------
+# IMU axes as mounted
+# ------------------------------------------------------------------------------------------
+
+#: Names of the vehicle's FLU directions (+ and −), REP-103 body axes.
+VEHICLE_DIRECTIONS = (("forward", "aft"), ("left", "right"), ("up", "down"))
+#: An IMU axis is named by a vehicle direction when within this angle of it (rad, 1°).
+ALIGNED_RAD = np.radians(1.0)
+#: The mount is fixed when it turns by less than this over the bag (rad).
+FIXED_MOUNT_RAD = 1e-6
+
+
+def mount_flu(c_ref_e: F64, c_imu_e: F64) -> F64:
+    """``C_IMU^Vehicle`` in FLU axes, (N, 3, 3): column j is IMU axis j in vehicle FLU.
+
+    ``c_ref_e``, ``c_imu_e``: ``C_FRD^E`` (N, 3, 3) of the vehicle (reference) and the IMU;
+    ``C = D C_ref^T C_imu D`` with ``D = diag(1, −1, −1)`` (FRD ↔ FLU).
+    """
+    d = np.diag([1.0, -1.0, -1.0])
+    return d @ np.swapaxes(c_ref_e, -1, -2) @ c_imu_e @ d
+
+
+def mount_axis_labels(mount: F64) -> tuple[str, str, str]:
+    """Labels of the IMU's FLU axes from a fixed mount (3, 3): ``x (aft)`` for an axis within
+    :data:`ALIGNED_RAD` of a vehicle direction, else its direction cosines in vehicle FLU."""
+    labels = []
+    for j, name in enumerate("xyz"):
+        col = mount[:, j]
+        k = int(np.argmax(np.abs(col)))
+        if np.arccos(min(1.0, abs(float(col[k])))) <= ALIGNED_RAD:
+            labels.append(f"{name} ({VEHICLE_DIRECTIONS[k][0 if col[k] > 0 else 1]})")
+        else:
+            labels.append(f"{name} (vehicle FLU {col[0]:+.2f}, {col[1]:+.2f}, {col[2]:+.2f})")
+    return (labels[0], labels[1], labels[2])
+
+
+def _label_axes(data: BagData) -> None:
+    """Name each IMU's axes by the vehicle direction they point to, from its truth attitude
+    and the reference's (``P/odom`` and ``/reference/odom`` on common stamps)."""
+    ref = data.streams.get("/reference")
+    ref_odom = data.contents.topics.get("/reference/odom")
+    for prefix, imu in data.imus.items():
+        labels = imu.axis_labels
+        own = data.streams.get(prefix)
+        odom_t = f"{prefix}/odom"
+        if prefix == "/reference" or is_regenerated(prefix):
+            labels = ("x (forward)", "y (left)", "z (up)")
+        elif ref is not None and own is not None and own.r_e is not None and ref_odom:
+            c_ref = odometry_state(data.contents[ref_odom.topic]).c_b_e
+            c_imu = odometry_state(data.contents[odom_t]).c_b_e
+            _, i, j = np.intersect1d(ref.stamps_ns, own.stamps_ns, return_indices=True)
+            if i.size:
+                m = mount_flu(c_ref[i], c_imu[j])
+                turn = float(np.max(rotation_angle(np.swapaxes(m[:1], -1, -2) @ m)))
+                if turn <= FIXED_MOUNT_RAD:
+                    labels = mount_axis_labels(m[0])
+                else:  # a scanning platform: the axes point differently over time
+                    labels = ("x (scanning mount)", "y (scanning mount)", "z (scanning mount)")
+        imu.axis_labels = labels
+        if prefix in data.measured:
+            data.measured[prefix].measured.axis_labels = labels
 
 
 # ------------------------------------------------------------------------------------------

@@ -15,8 +15,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, geodetic_to_ecef
 from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.report.data import (
@@ -44,7 +44,6 @@ __all__ = [
     "plot_trajectory",
 ]
 
-F64 = NDArray[np.float64]
 
 #: Bins per line for min/max decimation.
 MAX_BINS = 2000
@@ -253,28 +252,36 @@ def plot_attitude_velocity(bag: BagData, path: Path) -> Path:
 
 
 def plot_imu(bag: BagData, path: Path) -> Path:
-    """Angular rate (deg/s) and specific force (m/s²) of the ideal IMU topics (FLU axes)."""
+    """Angular rate (deg/s) and specific force (m/s²) of every IMU topic, each in its own FLU
+    axes, labelled by the vehicle direction each axis points to as mounted; a measured IMU
+    in the column beside its ideal twin."""
     imus = imu_list(bag)
     fig = _figure(6.5 * len(imus) + 0.5, 7)
     axes = fig.subplots(2, len(imus), sharex=True, squeeze=False)
-    labels = ("x (forward)", "y (left)", "z (up)")
     for col, d in enumerate(imus):
+        labels = d.axis_labels
         tt, w = minmax_decimate(d.t, np.degrees(d.gyro))
         tt, f = minmax_decimate(d.t, d.accel)
         for k in range(3):  # z (largest: gravity, bending) behind x and y
             z = 3 - k
             axes[0, col].plot(tt, w[:, k], color=AXIS_COLORS[k], lw=0.7, label=labels[k], zorder=z)
             axes[1, col].plot(tt, f[:, k], color=AXIS_COLORS[k], lw=0.7, label=labels[k], zorder=z)
-        axes[0, col].set(title=f"{d.topic}: angular rate Δα/T", ylabel="angular rate [deg/s]")
+        kind = "measured" if d.measured else "ideal"
+        frame = f", frame {d.frame_id}" if d.frame_id else ""
+        axes[0, col].set(title=f"{d.topic} ({kind}{frame}): angular rate Δα/T",
+                         ylabel="angular rate [deg/s]")  # fmt: skip
         axes[1, col].set(
-            title=f"{d.topic}: specific force Δv/T",
+            title=f"{d.topic} ({kind}): specific force Δv/T",
             ylabel="specific force [m/s²]",
             xlabel=_time_label(bag),
         )
         for row in range(2):
+            axes[row, col].title.set_fontsize(10)
+        for row in range(2):
             axes[row, col].grid(alpha=0.3)
             axes[row, col].legend(fontsize=8, loc="best", ncol=3)
-    fig.suptitle(f"{bag.name}: IMU increments (body FLU axes)", fontsize=12)
+    fig.suptitle(f"{bag.name}: IMU increments (each IMU's own FLU axes, named by the vehicle "
+                 "direction they point to as mounted)", fontsize=12)  # fmt: skip
     return _save(fig, path)
 
 
@@ -471,5 +478,14 @@ def plot_allan(mi: MeasuredImu, bag_name: str, path: Path) -> Path:
 
 
 def imu_list(bag: BagData) -> list[ImuData]:
-    """The ideal IMU topics :func:`plot_imu` draws."""
-    return [d for p, d in bag.imus.items() if not is_regenerated(p) and not is_navigator(p)]
+    """The IMU topics :func:`plot_imu` draws: each ideal IMU followed by its measured twin,
+    measured IMUs without a twin, then Imu topics of other names (another tool's bag)."""
+    out: list[ImuData] = []
+    for p, d in bag.imus.items():
+        if is_regenerated(p) or is_navigator(p):
+            continue
+        out.append(d)
+        if p in bag.measured:
+            out.append(bag.measured[p].measured)
+    out += [m.measured for p, m in bag.measured.items() if p not in bag.imus]
+    return out + list(bag.other_imus.values())

@@ -4,8 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from strapdown_ros.checks.foreign import capability_lines, is_foreign
 from strapdown_ros.core.exact_update import Residuals
-from strapdown_ros.report.data import AllanResult, BagData, Comparison, ErrorSet, MeasuredImu
+from strapdown_ros.report.data import (
+    AllanResult,
+    BagData,
+    Comparison,
+    ErrorSet,
+    MeasuredImu,
+    is_navigator,
+)
 
 __all__ = [
     "allan_table",
@@ -13,6 +21,7 @@ __all__ = [
     "error_table",
     "exactness_table",
     "header",
+    "solution_inputs",
     "topic_table",
 ]
 
@@ -52,7 +61,53 @@ def header(bag: BagData) -> list[str]:
             for k, v in sorted(c.custom_data.items())
         )
         lines.append(f"- custom data: {items}")
+    if bag.settings is not None and bag.residuals:
+        lines.append(f"- exactness re-check: {bag.settings.describe()}")
+    lines += [f"- {s}" for s in solution_inputs(bag)]
+    if is_foreign(c.custom_data):
+        types = {t: d.msgtype for t, d in c.topics.items()}
+        lines += ["", "## What this report can show of this bag", ""]
+        lines += [f"- {s}" for s in capability_lines(c.custom_data, types)]
+    if bag.notes:
+        lines += [f"- {n}" for n in bag.notes]
     return lines
+
+
+def _imu_kind(bag: BagData, topic: str) -> str:
+    """``ideal`` (an exact stream's ``P/imu``), ``measured`` (an error model's output) or
+    ``IMU``."""
+    if topic.endswith("/imu_measured") or any(
+        m.measured.topic == topic for m in bag.measured.values()
+    ):
+        return "measured"
+    if any(d.topic == topic for d in bag.imus.values()):
+        return "ideal"
+    return "IMU"
+
+
+def solution_inputs(bag: BagData) -> list[str]:
+    """One line per navigation solution: the IMU topic it consumes, ideal or measured.
+
+    From the bag's ``custom_data`` (``navigator.imu_topic``, or ``<prefix>.imu_topic`` for a
+    solution under another prefix); a solution whose input is not recorded says so.
+    """
+    cd = bag.contents.custom_data
+    owners = [p for p in bag.streams if is_navigator(p)]
+    owners += [p for p in bag.errors if p not in owners]
+    out = []
+    for owner in owners:
+        key = owner.strip("/")
+        topic = cd.get(f"{key}.imu_topic") or (cd.get("navigator.imu_topic") if key ==
+                                                 "navigator" else None)  # fmt: skip
+        if topic:
+            kind = _imu_kind(bag, topic)
+            out.append(f"solution `{owner}` consumes the {kind} IMU `{topic}`")
+        else:
+            out.append(
+                f"solution `{owner}`: the bag's metadata does not record which IMU it consumes "
+                f"(`{key}.imu_topic`)"
+            )
+    return out
 
 
 def topic_table(bag: BagData) -> list[str]:
@@ -84,11 +139,12 @@ def exactness_table(bag: BagData) -> list[str]:
         ])  # fmt: skip
     head = ["streams", "cycles", "max attitude [rad]", "max velocity [m/s]", "max position [m]",
             "result"]  # fmt: skip
+    model = bag.settings.describe() if bag.settings is not None else "gravity model j2"
     limits = (
         f"Limits: {Residuals.TOL_ATTITUDE:g} rad, {Residuals.TOL_VELOCITY:g} m/s, "
         f"{Residuals.TOL_POSITION:g} m per step (Savage 2020 eqs. (2)-(4) in E0, gravity at the "
-        "published positions, `j2`). Streams at oversample > 1 or with an error model are not "
-        "expected to pass."
+        f"published positions; {model}). Streams at oversample > 1 or with an error model are "
+        "not expected to pass."
     )
     return _table(head, rows) + ["", limits]
 

@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.batches import Batch, batch
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.aiding import (
     AIDING_TOPICS,
@@ -51,6 +51,7 @@ from strapdown_ros.core.earth import dcm_ned_to_ecef, ecef_to_geodetic
 from strapdown_ros.core.rotations import frd_to_flu
 from strapdown_ros.messages import (
     COVARIANCE_TYPE_DIAGONAL_KNOWN,
+    COVARIANCE_TYPE_UNKNOWN,
     FluidPressureFields,
     MagneticFieldFields,
     OdometryFields,
@@ -260,6 +261,11 @@ class _Gnss(_Channel):
         pos = errors.position_variance
         vel = errors.velocity_variance
         self.pos_cov = np.diag([pos[1], pos[0], pos[2]]).reshape(9)  # ENU
+        # Errors off: the fix is the antenna truth to round-off and no variance describes it;
+        # UNKNOWN (as the ideal streams' fixes) rather than an all-zero "known" covariance.
+        self.pos_cov_type = (
+            COVARIANCE_TYPE_DIAGONAL_KNOWN if np.any(pos > 0) else COVARIANCE_TYPE_UNKNOWN
+        )
         twist = np.zeros(6)
         twist[:3] = [vel[1], vel[0], vel[2]]
         twist[3:] = NOT_MEASURED_VARIANCE
@@ -284,7 +290,7 @@ class _Gnss(_Channel):
             meas.alt[sel],
             spec.frame_id or "gnss",
             position_covariance=self.pos_cov,
-            position_covariance_type=COVARIANCE_TYPE_DIAGONAL_KNOWN,
+            position_covariance_type=self.pos_cov_type,
             status=spec.status_code,
             service=spec.service_code,
         )
@@ -572,8 +578,7 @@ class AidingStage:
     def feed(self, odom: OdometryFields) -> list[Batch]:
         """:meth:`feed_fields`, serialized: one :class:`Batch` per topic (log time = release)."""
         return [
-            Batch(o.topic, cdr.msgtype_of(o.fields), o.log_ns, cdr.serialize(o.fields))
-            for o in self.feed_fields(odom)
+            batch(o.topic, o.fields, log_ns=o.log_ns) for o in self.feed_fields(odom)
         ]
 
     def on_payloads(self, payloads: list[bytes | memoryview]) -> list[Batch]:

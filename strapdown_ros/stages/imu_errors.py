@@ -262,7 +262,7 @@ class ImuErrorsStage:
         for _, ideal in decode_runs(cdr.IMU, payloads, self.input_topic, self.events):
             measured = self.feed(ideal)
             if measured is not None:
-                out += [bytes(d) for d in cdr.serialize(measured)]
+                out += [bytes(d) for d in batch(self.output_topic, measured).payloads]
         return out
 
     def feed_batches(self, batches: list[Batch]) -> list[Batch]:

@@ -21,6 +21,7 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
 from strapdown_ros.config import Initial, Scenario, navigator_spec
 from strapdown_ros.config.navigator import INPUT_STREAMS, OUTPUT_TOPICS, NavigatorSpec
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.navigation import (
     NavState,
 )
@@ -65,8 +66,6 @@ __all__ = [
     "navigate_messages",
 ]
 
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 Log = Callable[[str], None]
 Message = tuple[str, int, bytes]
 
@@ -152,6 +151,7 @@ class NavigatorStage:
         self.events = InputEvents(warn, error)
         self.period_ns: int | None = None
         self.first_imu: list[tuple[int, Any]] = []  # (stamp, fields) before T is known
+        self.first_stamps: list[int] = []  # every stamp of the period search (gaps reported)
         self.imu_buffer: list[tuple[int, F64, F64]] = []  # waiting for a run
         self.truth = TruthStore(TRUTH_KEEP)
         self.run: NavigatorRun | None = None
@@ -269,7 +269,9 @@ class NavigatorStage:
             fields = cdr.deserialize(msgtype, payloads)
         except cdr.CdrError:
             return _Decoded(None, np.zeros(0, dtype=np.int64), payloads)
-        return self._decoded(fields)
+        # Truth states are made after the screen (_drop_nonfinite): never from a NaN or a
+        # degenerate quaternion.
+        return _Decoded(fields, np.asarray(fields.stamps_ns, dtype=np.int64), None)
 
     def _decoded(self, fields: Any) -> _Decoded:
         stamps = np.asarray(fields.stamps_ns, dtype=np.int64)
@@ -334,7 +336,7 @@ class NavigatorStage:
                 continue
             fields, bad = self._screen(dec.fields, flag)
             if bad is None:
-                parts.append(dec if fields is dec.fields else self._decoded(fields))
+                parts.append(self._decoded(fields))
                 continue
             keep[np.flatnonzero(is_imu == flag)[bad]] = False
             parts.append(None if fields is None else self._decoded(fields))
@@ -448,7 +450,13 @@ class NavigatorStage:
             error=True,
         )
 
-    def _set_period(self, period_ns: int, how: str = "from the stamps") -> bool:
+    def _set_period(self, period_ns: int, how: str = "from the stamps",
+                    stamps: Sequence[int] = ()) -> bool:  # fmt: skip
+        """Take ``period_ns`` as the IMU period T (and N from ``nav_period_s``); False if it
+        cannot be. ``stamps``: the stamps the period was learned from, in arrival order; an
+        interval among them longer than T (e.g. the very first one: 2T, a message lost
+        before T was known) is a gap, logged like any other (:meth:`InputEvents.gap`), and the
+        messages before it are not used (the run starts after it)."""
         if period_ns <= 0:
             return False
         if self.nav_period_s > 0:
@@ -466,6 +474,21 @@ class NavigatorStage:
             f"IMU period T = {period_ns} ns ({1e9 / period_ns:g} Hz) {how}; "
             f"T_nav = N T = {self.n} x T = {self.n * period_ns * 1e-9:g} s, P = {self.spec.p}"
         )
+        used = stamps[-3] if len(stamps) >= 3 else None
+        for a, b in zip(stamps[:-1], stamps[1:], strict=True):
+            if b - a <= period_ns:
+                continue
+            lost = (b - a) // period_ns - 1 if (b - a) % period_ns == 0 else None
+            self.events.gap(
+                self.spec.imu_topic,
+                range(a + period_ns, b, period_ns) if lost else [],
+                f"{self.spec.imu_topic}: stamp {format_stamp(b)} follows {format_stamp(a)} "
+                f"after {(b - a) / period_ns:g} T, before the IMU period was known ("
+                + (f"{lost} message(s) missing" if lost else "off the grid of T")
+                + "); the messages up to it are not used"
+                + (f", the navigator starts at {format_stamp(used)}" if used is not None else ""),
+                self.info,
+            )
         return True
 
     def _add_truth(self, state: EarthState) -> None:
@@ -491,13 +514,15 @@ class NavigatorStage:
                     "search starts again from it",
                 )
                 first.clear()
+                self.first_stamps.clear()
             first.append((stamp, fields))
+            self.first_stamps.append(stamp)
             if len(first) < 3:
                 return []
             if first[-1][0] - first[-2][0] != first[-2][0] - first[-3][0]:
                 del first[:-2]
                 return []
-            if not self._set_period(first[-1][0] - first[-2][0]):
+            if not self._set_period(first[-1][0] - first[-2][0], stamps=self.first_stamps):
                 return []
             held, self.first_imu = first, []
             for s, f in held:

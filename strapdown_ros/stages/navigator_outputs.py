@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from strapdown_ros.config.navigator import OUTPUT_TOPICS
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import (
     dcm_ned_to_ecef,
     geodetic_to_ecef,
@@ -32,9 +32,6 @@ from strapdown_ros.messages import (
     vector3_stamped_fields,
 )
 from strapdown_ros.stages.navigator_truth import TruthRows
-
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 
 @dataclass

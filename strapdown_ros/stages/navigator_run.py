@@ -4,9 +4,9 @@ navigator of a resolved spec, fed increments and truth, returning the complete o
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from strapdown_ros.config.navigator import NavigatorSpec
+from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import (
     OMEGA_IE_VEC,
     dcm_ned_to_ecef,
@@ -23,9 +23,6 @@ from strapdown_ros.core.rotations import dcm_from_quat
 from strapdown_ros.messages import EarthState
 from strapdown_ros.stages.navigator_outputs import NavigatorOutputs, output_fields
 from strapdown_ros.stages.navigator_truth import truth_rows
-
-F64 = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 
 class StreamError(ValueError):

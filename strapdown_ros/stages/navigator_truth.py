@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from strapdown_ros.config import Initial
 from strapdown_ros.config.navigator import NavigatorSpec
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import (
     dcm_ecef_to_ned,
     dcm_ned_to_ecef,
@@ -24,8 +25,6 @@ from strapdown_ros.core.rotations import (
     quat_from_dcm,
 )
 from strapdown_ros.messages import EarthState
-
-F64 = NDArray[np.float64]
 
 #: Truth messages kept for (re)starting runs.
 TRUTH_KEEP = 4096

@@ -2,7 +2,8 @@
 
 :class:`TFStage` turns the serialized output of the other stages into the messages ROS
 tools expect (docs/interface.md, "Frames and TF"): ``/tf_static`` (``earth → map``,
-``base_link → reference_imu``, ``base_link → variation_imu`` when its offsets are constant),
+``base_link → reference_imu``, ``base_link → variation_imu`` when its offsets are constant,
+``base_link → <sensor>`` of each aiding sensor with a frame of its own),
 ``/tf`` (``map → base_link`` from the reference truth, ``base_link → variation_imu`` from the
 variation's offsets, ``map → <navigator frame>`` from the navigation solution), map-frame
 ``nav_msgs/Odometry`` beside each ECEF Odometry topic, and optional Δv / Δq topics beside each
@@ -22,7 +23,8 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, batch, merge_order
 from strapdown_ros.bag.writer import DEFAULT_QOS
 from strapdown_ros.config import Scenario, tf_spec
-from strapdown_ros.core.frames import Datum, sensor_in_body
+from strapdown_ros.config.tf import sensor_frames
+from strapdown_ros.core.frames import Datum, lever_arm_in_base_link, sensor_in_body
 from strapdown_ros.core.variation import OffsetArrays
 from strapdown_ros.messages import (
     BASE_LINK_FRAME,
@@ -246,6 +248,12 @@ class TFStage:
         self.frames = {k: _frame(scenario, k) for k in ("earth", "map", "base_link")}
         self.frames["reference_imu"] = _frame(scenario, "reference_imu")
         self.frames["variation_imu"] = _frame(scenario, "variation_imu")
+        #: aiding sensors' (frame id, base_link → sensor translation FLU) in /tf_static
+        self.sensor_frames = [
+            (frame, lever_arm_in_base_link(lever))
+            for frame, lever in sensor_frames(plan.aiding, self.frames["reference_imu"]).values()
+            if frame != self.frames["reference_imu"]  # the magnetometer's default: the IMU's
+        ]
         self._offsets = offsets
         self._cycles = plan.cycles
         self._variation_static = plan.variation_static
@@ -299,7 +307,9 @@ class TFStage:
         return [] if static is None else [static]
 
     def static_batch(self) -> Batch | None:
-        """``/tf_static`` (one message at the start stamp t0), None when TF is off."""
+        """``/tf_static`` (one message at the start stamp t0), None when TF is off: ``earth →
+        map``, ``base_link → reference_imu``, ``base_link → variation_imu`` when static, and
+        ``base_link → <sensor frame>`` of each aiding sensor at its lever arm (docs/frames.md)."""
         if not self.settings.tf:
             return None
         f = self.frames
@@ -314,6 +324,11 @@ class TFStage:
             children.append(f["variation_imu"])
             translation.append(p[0])
             rotation.append(c[0])
+        for frame, lever in self.sensor_frames:  # each aiding sensor at its lever arm
+            parents.append(f["base_link"])
+            children.append(frame)
+            translation.append(lever)
+            rotation.append(np.eye(3))
         fields = tf_message_fields(
             np.array([self.settings.t0_ns], dtype=np.int64),
             parents,

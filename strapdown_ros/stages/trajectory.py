@@ -260,17 +260,26 @@ def _truncate(stream: Stream, cycles: int) -> Stream:
     )
 
 
+def named_stream_batches(
+    scenario: Scenario, stream: Stream, name: str, body_frame: str, fix: bool = True
+) -> list[Batch]:
+    """Serialized batches of ``stream`` on the recording topics ``<name>_imu``, ``<name>_odom``
+    (and ``<name>_fix``), in the recording frame ``body_frame`` and the Earth frame."""
+    rec = scenario.recording
+    return stream_batches(
+        stream,
+        imu_topic=rec.topics[f"{name}_imu"],
+        odom_topic=rec.topics[f"{name}_odom"],
+        fix_topic=rec.topics[f"{name}_fix"] if fix else None,
+        body_frame=rec.frames[body_frame],
+        earth_frame=rec.frames["earth"],
+    )
+
+
 def reference_batches(scenario: Scenario, stream: Stream) -> list[Batch]:
     """Serialized ``/reference/*`` (and ``/clock`` if recording.clock) batches of a scenario."""
     rec = scenario.recording
-    batches = stream_batches(
-        stream,
-        imu_topic=rec.topics["reference_imu"],
-        odom_topic=rec.topics["reference_odom"],
-        fix_topic=rec.topics["reference_fix"],
-        body_frame=rec.frames["reference_imu"],
-        earth_frame=rec.frames["earth"],
-    )
+    batches = named_stream_batches(scenario, stream, "reference", "reference_imu")
     if rec.clock:
         batches.insert(0, clock_batch(stream.stamps_ns, rec.topics["clock"]))
     return batches

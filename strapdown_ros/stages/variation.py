@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch, merge_order, stream_batches
+from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.variation import VariationSpec
 from strapdown_ros.core.exact_update import Residuals
@@ -30,11 +30,10 @@ from strapdown_ros.stages.intake import (
     InputEvents,
     decode_one,
     format_stamp,
-    nonfinite_rows,
+    screen,
     stamp_verdict,
-    stretches,
-    without_rows,
 )
+from strapdown_ros.stages.trajectory import named_stream_batches
 
 __all__ = [
     "IMU",
@@ -84,22 +83,9 @@ def variation_streams(scenario: Scenario, reference: Stream) -> tuple[Stream, St
 
 def variation_batches(scenario: Scenario, variation: Stream, regenerated: Stream) -> list[Batch]:
     """Serialized ``/variation/*`` and ``/variation/reference/*`` batches (recording names)."""
-    rec = scenario.recording
-    batches = stream_batches(
-        variation,
-        imu_topic=rec.topics["variation_imu"],
-        odom_topic=rec.topics["variation_odom"],
-        fix_topic=rec.topics["variation_fix"],
-        body_frame=rec.frames["variation_imu"],
-        earth_frame=rec.frames["earth"],
-    )
-    batches += stream_batches(
-        regenerated,
-        imu_topic=rec.topics["variation_reference_imu"],
-        odom_topic=rec.topics["variation_reference_odom"],
-        fix_topic=None,
-        body_frame=rec.frames["reference_imu"],
-        earth_frame=rec.frames["earth"],
+    batches = named_stream_batches(scenario, variation, "variation", "variation_imu")
+    batches += named_stream_batches(
+        scenario, regenerated, "variation_reference", "reference_imu", fix=False
     )
     return batches
 
@@ -436,29 +422,26 @@ class VariationStage:
 
     # -- checks --------------------------------------------------------------------------------
 
+    #: What the stage does with a message that :func:`~strapdown_ros.stages.intake.screen`
+    #: rejects (a NaN or an infinity, a degenerate orientation quaternion).
+    _REJECTED = "dropped (a lost message: the solution restarts after it)"
+
     def _drop_nonfinite(self, inp: _Input) -> _Input:
-        """``inp`` without its messages holding a NaN or an infinity (each stretch logged); a
-        dropped message is a lost one (the run restarts after it)."""
+        """``inp`` without its messages that are not fit to use (a NaN or an infinity, an
+        orientation quaternion of degenerate norm: the shared intake's
+        :func:`~strapdown_ros.stages.intake.screen`, each stretch logged); a dropped message
+        is a lost one (the run restarts after it). A small departure from unit norm is
+        normalized in the fields."""
         if inp.fields is None:
             return inp
-        bad = nonfinite_rows(inp.fields)
+        topic = self.topics[inp.kind]
+        fields, bad = screen(inp.fields, topic, self.events, self._REJECTED,
+                             lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
         if bad is None:
-            return inp
-        stamps = np.asarray(inp.fields.stamps_ns, dtype=np.int64)
-        self.events.dropped(self.topics[inp.kind], stamps[bad].tolist())
-        for a, b in stretches(bad):
-            span = format_stamp(int(stamps[a]))
-            if b > a:
-                span += f"..{format_stamp(int(stamps[b]))} ({b - a + 1} messages)"
-            self.events(
-                "non-finite",
-                f"{self.topics[inp.kind]}: stamp {span}: NaN or infinity in the message; "
-                "dropped (a lost message: the solution restarts after it)",
-                error=True,
-            )
+            return dataclasses.replace(inp, fields=fields)
         keep = np.flatnonzero(~bad)
         payloads = None if inp.payloads is None else [inp.payloads[k] for k in keep]
-        return _Input(inp.kind, without_rows(inp.fields, bad), payloads, inp.positions[keep])
+        return _Input(inp.kind, fields, payloads, inp.positions[keep])
 
     def _ingest(self, inputs: list[_Input]) -> None:
         """Take the messages in arrival order: the consistent ones in bulk, others one by one."""
@@ -608,15 +591,8 @@ class VariationStage:
             return None
         self.timing.decode_wall += time.perf_counter() - t
         self.timing.decoded += 1
-        if nonfinite_rows(msg) is not None:
-            self.events.dropped(topic, [int(msg.stamps_ns[0])])
-            self.events(
-                "non-finite",
-                f"{topic}: stamp {format_stamp(int(msg.stamps_ns[0]))}: NaN or infinity in "
-                "the message; dropped (a lost message: the solution restarts after it)",
-                error=True,
-            )
-            return None
+        msg, _ = screen(msg, topic, self.events, self._REJECTED,
+                        lambda stamps: self.events.dropped(topic, stamps))  # fmt: skip
         return msg
 
     def _cycle(self, kind: str, stamp: int) -> int | None:
@@ -694,17 +670,11 @@ class VariationStage:
         imu = self.buffer[IMU].frames(m)
         odom = self.buffer[ODOM].frames(m)
         if imu is not None and odom is not None and imu.frame_id != odom.child_frame_id:
-            self.events(
-                "wrong frame",
-                f"{self.describe(m)}: Imu frame_id {imu.frame_id!r} differs from the Odometry "
-                f"child_frame_id {odom.child_frame_id!r}: the reference messages do not "
-                f"describe one body; rejected, the solution restarts at cycle {m + 1}",
-                error=True,
+            return self._reject_frames(
+                m,
+                f"Imu frame_id {imu.frame_id!r} differs from the Odometry child_frame_id "
+                f"{odom.child_frame_id!r}: the reference messages do not describe one body",
             )
-            self.buffer[IMU].discard(m)
-            self.buffer[ODOM].discard(m)
-            self.restart(m + 1, "", log=False)
-            return False
         for msg, name in ((imu, "Imu frame_id"), (odom, "Odometry child_frame_id")):
             if msg is None:
                 continue
@@ -719,17 +689,23 @@ class VariationStage:
                         f"reference_imu {expected!r}; the output carries the scenario's frames"
                     )
             elif frame != self.body_frame:
-                self.events(
-                    "wrong frame",
-                    f"{self.describe(m)}: {name} {frame!r} differs from the run's body frame "
-                    f"{self.body_frame!r}; rejected, the solution restarts at cycle {m + 1}",
-                    error=True,
+                return self._reject_frames(
+                    m, f"{name} {frame!r} differs from the run's body frame {self.body_frame!r}"
                 )
-                self.buffer[IMU].discard(m)
-                self.buffer[ODOM].discard(m)
-                self.restart(m + 1, "", log=False)
-                return False
         return True
+
+    def _reject_frames(self, m: int, why: str) -> bool:
+        """Cycle ``m``'s messages rejected for their frames (a ``wrong frame`` event); the
+        solution restarts at the next cycle. Returns False (not accepted)."""
+        self.events(
+            "wrong frame",
+            f"{self.describe(m)}: {why}; rejected, the solution restarts at cycle {m + 1}",
+            error=True,
+        )
+        self.buffer[IMU].discard(m)
+        self.buffer[ODOM].discard(m)
+        self.restart(m + 1, "", log=False)
+        return False
 
     # -- solving -------------------------------------------------------------------------------
 

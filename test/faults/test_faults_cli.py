@@ -125,12 +125,14 @@ def test_generate_full_disk(tmpfs) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
-def _interrupt(args: list[str], after: float, env: dict[str, str], wait_for: str | None = None,
-               timeout: float = 240.0) -> tuple[int, str, int]:  # fmt: skip
-    """Start ``strapdown-sim args`` in its own session, press Ctrl-C (SIGINT to its process
-    group) ``after`` s (after ``wait_for`` appears on stderr, if given); return (status,
-    stderr, process group id)."""
-    err_path = Path(env["FAULTS_TMP"]) / "stderr.txt"
+def _interrupt(args: list[str], after: float, env: dict[str, str], tmp_path: Path,
+               wait_for: str | None = None, timeout: float = 240.0) -> str:  # fmt: skip
+    """Start ``strapdown-sim args`` in its own session (``FAULTS_TMP`` = ``tmp_path``, which
+    receives its stderr.txt), press Ctrl-C (SIGINT to its process group) ``after`` s (after
+    ``wait_for`` appears on stderr, if given); check that it stopped with status 130 saying
+    "interrupted", without a traceback; return its stderr."""
+    env["FAULTS_TMP"] = str(tmp_path)
+    err_path = tmp_path / "stderr.txt"
     with open(err_path, "w") as err:
         proc = subprocess.Popen(
             [sys.executable, "-c", CLI, *args], stdout=subprocess.DEVNULL, stderr=err,
@@ -150,7 +152,10 @@ def _interrupt(args: list[str], after: float, env: dict[str, str], wait_for: str
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
         pytest.fail("the command did not stop after Ctrl-C")
-    return proc.returncode, err_path.read_text(errors="replace"), proc.pid
+    err_text = err_path.read_text(errors="replace")
+    _no_traceback(err_text)
+    assert proc.returncode == 130 and "interrupted" in err_text, err_text
+    return err_text
 
 
 def _processes_with(marker: bytes) -> list[int]:
@@ -168,12 +173,8 @@ def _processes_with(marker: bytes) -> list[int]:
 
 
 def test_generate_ctrl_c(tmp_path) -> None:
-    env = _env()
-    env["FAULTS_TMP"] = str(tmp_path)
     out = tmp_path / "bag"
-    rc, err, _ = _interrupt(["generate", str(SCENARIO), "--out", str(out)], 3.0, env)
-    _no_traceback(err)
-    assert rc == 130 and "interrupted" in err, err
+    _interrupt(["generate", str(SCENARIO), "--out", str(out)], 3.0, _env(), tmp_path)
     assert not out.exists() and [p.name for p in tmp_path.iterdir()] == ["stderr.txt"]
     time.sleep(0.5)
     assert not _processes_with(f"FAULTS_TMP={tmp_path}".encode()), "a worker outlived generate"
@@ -185,15 +186,11 @@ def test_run_ctrl_c(tmp_path, ros_env) -> None:
     exit status 130, no process left, no traceback anywhere."""
     from strapdown_ros.bag.reader import read_bag
 
-    env = _env(ros_env)
-    env["FAULTS_TMP"] = str(tmp_path)
     out = tmp_path / "bag"
-    rc, err, _ = _interrupt(
-        ["run", str(SCENARIO), "--duration", "60", "--out", str(out)], 4.0, env,
-        wait_for="trajectory_node",
+    _interrupt(
+        ["run", str(SCENARIO), "--duration", "60", "--out", str(out)], 4.0, _env(ros_env),
+        tmp_path, wait_for="trajectory_node",
     )  # fmt: skip
-    _no_traceback(err)
-    assert rc == 130 and "interrupted" in err, err
     read_bag(out)  # closed and readable
     logs = out.parent / f"{out.name}.logs"
     for log in logs.glob("*.log"):
@@ -265,15 +262,11 @@ def small_bag(tmp_path_factory):
 def test_replay_ctrl_c(small_bag, tmp_path, ros_env) -> None:
     """Ctrl-C on ``replay``: exit 130, what was recorded summarized, no traceback, no process
     left."""
-    env = _env(ros_env)
-    env["FAULTS_TMP"] = str(tmp_path)
     out = tmp_path / "replayed"
-    rc, err, _ = _interrupt(
-        ["replay", str(small_bag), "--into", "navigator", "--out", str(out)], 2.0, env,
-        wait_for="playing",
+    _interrupt(
+        ["replay", str(small_bag), "--into", "navigator", "--out", str(out)], 2.0,
+        _env(ros_env), tmp_path, wait_for="playing",
     )  # fmt: skip
-    _no_traceback(err)
-    assert rc == 130 and "interrupted" in err, err
     for log in (out.parent / f"{out.name}.logs").glob("*.log"):
         _no_traceback(log.read_text(errors="replace"))
     time.sleep(1.0)

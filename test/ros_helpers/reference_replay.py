@@ -4,14 +4,15 @@ output (test subprocess).
 Publishes the payloads of ``--imu-topic`` and ``--odom-topic`` of the bag ``--bag`` cycle by
 cycle (at one stamp: Odometry, then Imu, as ``merge_order`` puts them), RELIABLE, after both
 publishers have ``--wait-subscribers`` matched subscriptions (``--no-wait-odom``: the Imu's
-only) and every ``--record`` topic a matched publisher. Faults, each repeatable, by cycle index
-m (position in the Odometry stamps):
+only; ``--no-wait-imu``: the Odometry's only) and every ``--record`` topic a matched
+publisher. Faults, each repeatable, by cycle index m (position in the Odometry stamps):
 
 * ``--drop M``: cycle M is not published (a gap); ``--drop-imu M`` / ``--drop-odom M``: only
   its Imu / Odometry message;
 * ``--swap M``: cycles M and M+1 are published in the order M+1, M (out-of-order stamps);
 * ``--duplicate M``: cycle M is published twice (identical content);
 * ``--nan-imu M`` / ``--nan-odom M``: a NaN in the message's angular velocity / position;
+* ``--zero-quat-odom M``: the Odometry's orientation quaternion (0, 0, 0, 0) (finite, degenerate);
 * ``--jump-back AT:TO``: after cycle AT, continue from cycle TO (a restarted source).
 
 ``--interval`` s between cycles (0: a burst). Prints ``MATCHED``, then ``PUBLISHED <n>``.
@@ -42,17 +43,30 @@ def _with_nan(msgtype: str, payload: bytes, field: str) -> bytes:
     return bytes(cdr.serialize(type(fields)(**values))[0])
 
 
+def _with_zero_quaternion(payload: bytes) -> bytes:
+    import numpy as np
+
+    from strapdown_ros.bag import cdr
+
+    fields = cdr.deserialize(cdr.ODOMETRY, [payload])
+    values = {f: getattr(fields, f) for f in fields.__dataclass_fields__}
+    values["orientation"] = np.zeros((1, 4))
+    return bytes(cdr.serialize(type(fields)(**values))[0])
+
+
 def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     parser.add_argument("--bag", required=True)
     parser.add_argument("--imu-topic", default="/reference/imu")
     parser.add_argument("--odom-topic", default="/reference/odom")
-    for fault in ("drop", "drop-imu", "drop-odom", "swap", "duplicate", "nan-imu", "nan-odom"):
+    for fault in ("drop", "drop-imu", "drop-odom", "swap", "duplicate", "nan-imu", "nan-odom",
+                  "zero-quat-odom"):  # fmt: skip
         parser.add_argument(f"--{fault}", type=int, action="append", default=[], metavar="M")
     parser.add_argument("--jump-back", default=None, metavar="AT:TO")
     parser.add_argument("--interval", type=float, default=0.0)
     parser.add_argument("--wait-subscribers", type=int, default=1)
     parser.add_argument("--no-wait-odom", action="store_true")
+    parser.add_argument("--no-wait-imu", action="store_true")
     parser.add_argument("--record", action="append", default=[], metavar="NAME=TYPE")
     parser.add_argument("--out", default=None, help="with --record: the pickle to write")
     parser.add_argument("--quiet", type=float, default=4.0)
@@ -77,6 +91,8 @@ def _cycles(args: argparse.Namespace) -> list[list[tuple[str, bytes]]]:
             data = bytes(payload)
             if m in args.nan_odom:
                 data = _with_nan(cdr.ODOMETRY, data, "position")
+            if m in args.zero_quat_odom:
+                data = _with_zero_quaternion(data)
             items.append(("odom", data))
         if stamp in imu_by_stamp and m not in args.drop_imu:
             data = bytes(imu_by_stamp[stamp])
@@ -132,7 +148,8 @@ def main() -> int:
             subs.append(
                 node.create_subscription(message_type(msgtype), name, on_message, qos, raw=True)
             )
-        wait = [p for k, p in pubs.items() if not (k == "odom" and args.no_wait_odom)]
+        skip = {"odom": args.no_wait_odom, "imu": args.no_wait_imu}
+        wait = [p for k, p in pubs.items() if not skip[k]]
         if not wait_matched(node, deadline, wait, subs, args.wait_subscribers):
             return 3
         print("MATCHED", flush=True)

@@ -11,9 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core.aiding.common import GaussMarkov, check_period, sensor_rng
+from strapdown_ros.core.array_types import F64
 
 __all__ = [
     "BARO_NORMALS_PER_EPOCH",
@@ -24,7 +25,6 @@ __all__ = [
     "icao_pressure",
 ]
 
-Array = NDArray[np.float64]
 
 #: ICAO constants: sea-level pressure (Pa) and temperature (K), g₀ (m/s²), R (J/(kg K)),
 #: effective Earth radius r₀ (m) of the geopotential altitude.
@@ -46,7 +46,7 @@ ICAO_LAYERS = (
 )
 
 
-def _layer_bases() -> tuple[Array, Array, Array, Array]:
+def _layer_bases() -> tuple[F64, F64, F64, F64]:
     """Reference H, gradient β, temperature and pressure of each layer.
 
     The references are the layer bases, except for the bottom layer, referred to sea level
@@ -63,7 +63,7 @@ def _layer_bases() -> tuple[Array, Array, Array, Array]:
     return h_b, beta, t_b, p_b
 
 
-def _layer_pressure(p_b: float, t_b: float, beta: float, h_b: float, h: Array) -> Array:
+def _layer_pressure(p_b: float, t_b: float, beta: float, h_b: float, h: F64) -> F64:
     """Barometric formula within one layer (geopotential altitudes, m)."""
     if beta == 0.0:
         return p_b * np.exp(-G0 * (h - h_b) / (R_AIR * t_b))
@@ -73,13 +73,13 @@ def _layer_pressure(p_b: float, t_b: float, beta: float, h_b: float, h: Array) -
 _BASES = _layer_bases()
 
 
-def geopotential_altitude(h: ArrayLike) -> Array:
+def geopotential_altitude(h: ArrayLike) -> F64:
     """Geopotential altitude ``H = r₀ h / (r₀ + h)`` (m) of a geometric altitude h (m)."""
     h = np.asarray(h, dtype=np.float64)
     return R0_M * h / (R0_M + h)
 
 
-def icao_pressure(h: ArrayLike) -> Array:
+def icao_pressure(h: ArrayLike) -> F64:
     """Static pressure (Pa) of the ICAO Standard Atmosphere at geometric altitude h (m).
 
     Valid from −5 km to 80 km (the ICAO table); outside, the bottom and top layers are
@@ -134,7 +134,7 @@ class BaroErrorModel:
                                   init[1:2])  # fmt: skip
         self.epochs = 0
 
-    def apply(self, pressure: ArrayLike) -> Array:
+    def apply(self, pressure: ArrayLike) -> F64:
         """Measured pressures (n,) of the true ones (n,) at the next n epochs (Pa)."""
         p = np.asarray(pressure, dtype=np.float64)
         n = p.shape[0]

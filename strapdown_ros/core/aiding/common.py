@@ -14,6 +14,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
+from strapdown_ros.core.array_types import F64
+
 __all__ = [
     "SENSOR_STREAMS",
     "GaussMarkov",
@@ -21,10 +23,10 @@ __all__ = [
     "epoch_mask",
     "mat_t_vec",
     "mat_vec",
+    "rate_cross_lever",
     "sensor_rng",
 ]
 
-Array = NDArray[np.float64]
 
 #: Spawn key of each sensor's random stream: the same ``seed`` on two sensors gives
 #: independent noise.
@@ -49,7 +51,7 @@ def epoch_mask(stamps_ns: ArrayLike, period_ns: int) -> NDArray[np.bool_]:
     return (t % int(period_ns)) == 0
 
 
-def mat_vec(c: Array, v: Array) -> Array:
+def mat_vec(c: F64, v: F64) -> F64:
     """``c @ v`` of stacked 3×3 matrices (n, 3, 3) and vectors (n, 3), element-wise sums.
 
     Written out so that each output element is the same sum in the same order whatever n
@@ -58,9 +60,27 @@ def mat_vec(c: Array, v: Array) -> Array:
     return (c[..., 0] * v[..., 0:1] + c[..., 1] * v[..., 1:2]) + c[..., 2] * v[..., 2:3]
 
 
-def mat_t_vec(c: Array, v: Array) -> Array:
+def mat_t_vec(c: F64, v: F64) -> F64:
     """``cᵀ @ v`` of stacked 3×3 matrices and vectors (see :func:`mat_vec`)."""
     return (c[..., 0, :] * v[..., 0:1] + c[..., 1, :] * v[..., 1:2]) + c[..., 2, :] * v[..., 2:3]
+
+
+def rate_cross_lever(omega_eb_b: ArrayLike, lever_arm_b: ArrayLike) -> F64:
+    """``ω × l`` (n, 3): velocity (m/s, body FRD) of a point on the body relative to the IMU.
+
+    ``lever_arm_b``: the point from the IMU (m, FRD, (3,) or (n, 3)); ``omega_eb_b``: body
+    rates relative to the Earth (n, 3, rad/s, FRD). Written out, one sum order whatever n.
+    """
+    w = np.asarray(omega_eb_b, dtype=np.float64)
+    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
+    return np.stack(
+        [
+            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
+            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
+            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
+        ],
+        axis=-1,
+    )
 
 
 class GaussMarkov:
@@ -91,7 +111,7 @@ class GaussMarkov:
         self.state = self.sigma * np.asarray(initial, dtype=np.float64)
         self.active = bool(np.any(active))
 
-    def take(self, xi: Array) -> Array:
+    def take(self, xi: F64) -> F64:
         """Values at the next n epochs (n, k) from standard normals ``xi`` (n, k); advances."""
         n, k = xi.shape
         out = np.zeros((n, k))
@@ -108,7 +128,7 @@ class GaussMarkov:
         return out
 
     @property
-    def variance(self) -> Array:
+    def variance(self) -> F64:
         """Stationary variance σ² per column."""
         return self.sigma**2
 

@@ -9,17 +9,20 @@ white noise, for position (m) and velocity (m/s). Equations and presets: ``docs/
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core.aiding.common import (
     GaussMarkov,
     check_period,
     mat_t_vec,
     mat_vec,
+    rate_cross_lever,
     sensor_rng,
 )
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ned_to_ecef, ecef_to_geodetic
 
 __all__ = [
@@ -31,18 +34,9 @@ __all__ = [
     "gnss_measurement",
 ]
 
-Array = NDArray[np.float64]
 
 #: Standard normals per epoch: position white 3, position GM 3, velocity white 3, velocity GM 3.
 GNSS_NORMALS_PER_EPOCH = 12
-
-
-def _zeros() -> Array:
-    return np.zeros(3)
-
-
-def _ones() -> Array:
-    return np.ones(3)
 
 
 @dataclass(frozen=True)
@@ -53,29 +47,29 @@ class GnssErrors:
     ``*_offset`` constant offset. Position in m, velocity in m/s.
     """
 
-    position_white: Array = field(default_factory=_zeros)
-    position_gm_sigma: Array = field(default_factory=_zeros)
-    position_gm_tau_s: Array = field(default_factory=_ones)
-    position_offset: Array = field(default_factory=_zeros)
-    velocity_white: Array = field(default_factory=_zeros)
-    velocity_gm_sigma: Array = field(default_factory=_zeros)
-    velocity_gm_tau_s: Array = field(default_factory=_ones)
-    velocity_offset: Array = field(default_factory=_zeros)
+    position_white: F64 = field(default_factory=partial(np.zeros, 3))
+    position_gm_sigma: F64 = field(default_factory=partial(np.zeros, 3))
+    position_gm_tau_s: F64 = field(default_factory=partial(np.ones, 3))
+    position_offset: F64 = field(default_factory=partial(np.zeros, 3))
+    velocity_white: F64 = field(default_factory=partial(np.zeros, 3))
+    velocity_gm_sigma: F64 = field(default_factory=partial(np.zeros, 3))
+    velocity_gm_tau_s: F64 = field(default_factory=partial(np.ones, 3))
+    velocity_offset: F64 = field(default_factory=partial(np.zeros, 3))
 
     @property
-    def position_variance(self) -> Array:
+    def position_variance(self) -> F64:
         """Variance of one fix's random error per NED axis (m²): white² + GM σ²."""
         return np.asarray(self.position_white) ** 2 + np.asarray(self.position_gm_sigma) ** 2
 
     @property
-    def velocity_variance(self) -> Array:
+    def velocity_variance(self) -> F64:
         """Variance of one velocity's random error per NED axis ((m/s)²): white² + GM σ²."""
         return np.asarray(self.velocity_white) ** 2 + np.asarray(self.velocity_gm_sigma) ** 2
 
 
 def antenna_state(
     r_e: ArrayLike, v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
-) -> tuple[Array, Array]:
+) -> tuple[F64, F64]:
     """ECEF position (m) and Earth-relative velocity (m/s) of a rigid point at a lever arm.
 
     Parameters
@@ -97,17 +91,8 @@ def antenna_state(
     r = np.asarray(r_e, dtype=np.float64)
     v = np.asarray(v_e, dtype=np.float64)
     c = np.asarray(c_b_e, dtype=np.float64)
-    w = np.asarray(omega_eb_b, dtype=np.float64)
-    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
-    wxl = np.stack(
-        [
-            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
-            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
-            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
-        ],
-        axis=-1,
-    )
-    return r + mat_vec(c, lever), v + mat_vec(c, wxl)
+    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), np.shape(omega_eb_b))
+    return r + mat_vec(c, lever), v + mat_vec(c, rate_cross_lever(omega_eb_b, lever))
 
 
 class GnssErrorModel:
@@ -137,7 +122,7 @@ class GnssErrorModel:
         )
         self.epochs = 0
 
-    def take(self, n: int) -> tuple[Array, Array]:
+    def take(self, n: int) -> tuple[F64, F64]:
         """Position (m) and velocity (m/s) errors, NED, of the next ``n`` epochs, (n, 3) each."""
         z = self._rng.standard_normal((n, GNSS_NORMALS_PER_EPOCH))
         e = self.errors
@@ -164,10 +149,10 @@ class GnssMeasurement:
     ``v_enu`` (n, 3) in the local ENU axes (m/s).
     """
 
-    lat: Array
-    lon: Array
-    alt: Array
-    v_enu: Array
+    lat: F64
+    lon: F64
+    alt: F64
+    v_enu: F64
 
 
 def gnss_measurement(

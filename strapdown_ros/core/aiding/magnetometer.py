@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from strapdown_ros.core.aiding.common import check_period, mat_t_vec, mat_vec, sensor_rng
+from strapdown_ros.core.array_types import F64
 
 __all__ = [
     "IGRF_REFERENCE_RADIUS_M",
@@ -26,7 +28,6 @@ __all__ = [
     "igrf_field_ned",
 ]
 
-Array = NDArray[np.float64]
 
 #: Reference radius a of the IGRF / WMM spherical-harmonic expansions (6371.2 km).
 IGRF_REFERENCE_RADIUS_M = 6371200.0
@@ -36,7 +37,7 @@ MAG_NORMALS_PER_EPOCH = 3
 
 
 @functools.lru_cache(maxsize=4)
-def _recursion_factors(nmax: int) -> tuple[Array, Array, Array]:
+def _recursion_factors(nmax: int) -> tuple[F64, F64, F64]:
     """Factors of the Schmidt semi-normalized recursions up to degree ``nmax``.
 
     ``P_n^m = a1 cos θ P_{n−1}^m − a2 P_{n−2}^m`` (m < n) with
@@ -59,7 +60,7 @@ def _recursion_factors(nmax: int) -> tuple[Array, Array, Array]:
 def igrf_field_ned(
     r_e: ArrayLike, lat: ArrayLike, g: ArrayLike, h: ArrayLike,
     radius_m: float = IGRF_REFERENCE_RADIUS_M,
-) -> Array:  # fmt: skip
+) -> F64:  # fmt: skip
     """Main-field vector (nT) in the geodetic NED frame at ECEF positions.
 
     ``V = a Σ_n (a/r)^{n+1} Σ_m (g_n^m cos mλ + h_n^m sin mλ) P_n^m(cos θ)`` with Schmidt
@@ -143,17 +144,9 @@ def igrf_field_ned(
     return np.stack([north, by, down], axis=-1)
 
 
-def field_body(c_b_n: ArrayLike, field_ned: ArrayLike) -> Array:
+def field_body(c_b_n: ArrayLike, field_ned: ArrayLike) -> F64:
     """``C_N^B B^N = (C_B^N)ᵀ B^N`` (n, 3): the field in body axes, element-wise sums."""
     return mat_t_vec(np.asarray(c_b_n, dtype=np.float64), np.asarray(field_ned, dtype=np.float64))
-
-
-def _zeros() -> Array:
-    return np.zeros(3)
-
-
-def _identity() -> Array:
-    return np.eye(3)
 
 
 @dataclass(frozen=True)
@@ -164,13 +157,13 @@ class MagnetometerErrors:
     ``soft_iron`` the 3×3 matrix S (identity: none); ``white`` noise σ per axis (3,).
     """
 
-    hard_iron: Array = field(default_factory=_zeros)
-    hard_iron_sigma: Array = field(default_factory=_zeros)
-    soft_iron: Array = field(default_factory=_identity)
-    white: Array = field(default_factory=_zeros)
+    hard_iron: F64 = field(default_factory=partial(np.zeros, 3))
+    hard_iron_sigma: F64 = field(default_factory=partial(np.zeros, 3))
+    soft_iron: F64 = field(default_factory=partial(np.eye, 3))
+    white: F64 = field(default_factory=partial(np.zeros, 3))
 
     @property
-    def variance(self) -> Array:
+    def variance(self) -> F64:
         """Variance of one message's random error per FRD axis (T²): white²."""
         return np.asarray(self.white) ** 2
 
@@ -191,7 +184,7 @@ class MagnetometerErrorModel:
         self._identity = bool(np.array_equal(self._soft, np.eye(3)))
         self.epochs = 0
 
-    def apply(self, field_b: ArrayLike) -> Array:
+    def apply(self, field_b: ArrayLike) -> F64:
         """Measured field (n, 3) of the true body field (n, 3) at the next n epochs (T, FRD)."""
         b = np.asarray(field_b, dtype=np.float64)
         n = b.shape[0]

@@ -1,9 +1,11 @@
 """Wheel odometer: speed of a wheel contact point along the body x axis, plus sensor errors.
 
 Truth: ``v_c^B = C_E^B v^E + ω_eb^B × l`` (the contact point at lever arm ``l``, body FRD),
-speed ``u = v_c^B · x``. Errors: scale factor (fixed + drawn per run), white noise, then
+speed ``u = v_c^B · x``. Errors: scale factor (fixed + drawn per run), white noise of the
+rolling wheel (its σ bounded by the speed: a wheel at rest neither slips nor turns), then
 quantization by the encoder's pulses per metre with the residual carried (the distance
-counted over any span differs from the distance travelled by less than one pulse). See
+counted over any span differs from the distance rolled by less than one pulse). A vehicle at
+rest therefore counts no pulse and reports exactly zero speed, as an encoder does. See
 ``docs/aiding.md``.
 """
 
@@ -12,9 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-from strapdown_ros.core.aiding.common import check_period, mat_t_vec, sensor_rng
+from strapdown_ros.core.aiding.common import check_period, mat_t_vec, rate_cross_lever, sensor_rng
+from strapdown_ros.core.array_types import F64
 
 __all__ = [
     "ODOMETER_NORMALS_PER_EPOCH",
@@ -24,7 +27,6 @@ __all__ = [
     "contact_point_velocity",
 ]
 
-Array = NDArray[np.float64]
 
 #: Standard normals per epoch: white 1.
 ODOMETER_NORMALS_PER_EPOCH = 1
@@ -32,7 +34,7 @@ ODOMETER_NORMALS_PER_EPOCH = 1
 
 def contact_point_velocity(
     v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
-) -> Array:
+) -> F64:
     """Earth-relative velocity (m/s, body FRD) of the point at ``lever_arm_b`` (m, FRD).
 
     ``C_E^B v^E + ω_eb^B × l`` with ``c_b_e = C_FRD^E`` (n, 3, 3), ``v_e`` (n, 3) ECEF and
@@ -40,22 +42,12 @@ def contact_point_velocity(
     """
     v = np.asarray(v_e, dtype=np.float64)
     c = np.asarray(c_b_e, dtype=np.float64)
-    w = np.asarray(omega_eb_b, dtype=np.float64)
-    lever = np.broadcast_to(np.asarray(lever_arm_b, dtype=np.float64), w.shape)
-    wxl = np.stack(
-        [
-            w[:, 1] * lever[:, 2] - w[:, 2] * lever[:, 1],
-            w[:, 2] * lever[:, 0] - w[:, 0] * lever[:, 2],
-            w[:, 0] * lever[:, 1] - w[:, 1] * lever[:, 0],
-        ],
-        axis=-1,
-    )
-    return mat_t_vec(c, v) + wxl
+    return mat_t_vec(c, v) + rate_cross_lever(omega_eb_b, lever_arm_b)
 
 
 def contact_point_speed(
     v_e: ArrayLike, c_b_e: ArrayLike, omega_eb_b: ArrayLike, lever_arm_b: ArrayLike
-) -> Array:
+) -> F64:
     """Speed (m/s) along body x of the contact point (see :func:`contact_point_velocity`)."""
     return contact_point_velocity(v_e, c_b_e, omega_eb_b, lever_arm_b)[:, 0]
 
@@ -70,7 +62,9 @@ class OdometerErrors:
     pulses_per_m: float = 0.0  #: encoder pulses per metre (0: no quantization)
 
     def variance(self, period_s: float) -> float:
-        """Variance of one speed's random error ((m/s)²): white² + (q/P)²/6, q = 1/pulses_per_m.
+        """Variance of one speed's random error ((m/s)²) rolling at |u| ≥ σ_w.
+
+        white² + (q/P)²/6, q = 1/pulses_per_m; below σ_w an upper bound, at rest the error is 0.
 
         (The quantization error of a speed is the difference of two residuals uniform over
         one pulse, divided by the epoch period P.)
@@ -84,9 +78,13 @@ class OdometerErrorModel:
 
     1 normal at construction (scale factor), :data:`ODOMETER_NORMALS_PER_EPOCH` per epoch.
 
-    The measured speed of an epoch is taken as the mean over the epoch period P: the encoder
-    count is ``floor(D_k / q)`` with ``D_k`` the running sum of ``ũ_k P``, and the emitted
-    speed is ``q (n_k − n_{k−1}) / P``.
+    The wheel's speed is ``ũ = (1 + s) u + min(σ_w, |u|) ξ``: the white noise stands for slip
+    and tread deformation, which exist only while the wheel rolls, so its σ is bounded by the
+    speed (zero at rest, the full σ_w from |u| = σ_w up). The measured speed of an epoch is the
+    mean over the epoch period P an encoder gives: the count is ``floor(D_k / q)`` with ``D_k``
+    the running sum of ``ũ_k P`` from ``D_0 = q/2`` (the start mid-pulse), and the emitted
+    speed is ``q (n_k − n_{k−1}) / P``. At rest ``ũ`` is the truth's round-off (~1e-14 m/s),
+    far below the half pulse: the count stays and the speed is exactly 0.
     """
 
     def __init__(self, errors: OdometerErrors, period_s: float, seed: int) -> None:
@@ -96,16 +94,19 @@ class OdometerErrorModel:
         init = self._rng.standard_normal(1)
         self.scale_factor = errors.scale_factor + errors.scale_factor_sigma * float(init[0])
         self.quantum = 1.0 / errors.pulses_per_m if errors.pulses_per_m > 0 else 0.0
-        self._distance = 0.0  # running sum of the quantizer inputs, m
+        # Running sum of the quantizer inputs (m), starting mid-pulse: the wheel's phase at the
+        # start is inside a pulse, so the truth's round-off at rest (~1e-14 m/s) never counts.
+        self._distance = 0.5 * self.quantum
         self._count = 0.0  # floor(distance / q) after the last epoch
         self.epochs = 0
 
-    def apply(self, speed: ArrayLike) -> Array:
+    def apply(self, speed: ArrayLike) -> F64:
         """Measured speeds (n,) of the true ones (n,) at the next n epochs (m/s)."""
         u = np.asarray(speed, dtype=np.float64)
         n = u.shape[0]
         z = self._rng.standard_normal((n, ODOMETER_NORMALS_PER_EPOCH))
-        out = u + (self.scale_factor * u + self.errors.white * z[:, 0])
+        sigma = np.minimum(self.errors.white, np.abs(u))  # no slip without rolling
+        out = u + (self.scale_factor * u + sigma * z[:, 0])
         q = self.quantum
         if q > 0 and n:
             period = self.period_s

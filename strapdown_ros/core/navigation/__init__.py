@@ -6,28 +6,8 @@
   the simultaneous l-frame scheme (Table 2) for comparison.
 """
 
-from strapdown_ros.core.navigation.multirate import (
-    MODES,
-    MultirateNavigator,
-    NavSolution,
-    SimultaneousNavigator,
-    VerticalDamping,
-    fast_cycle,
-    navigate_multirate,
-    navigate_simultaneous,
-)
-from strapdown_ros.core.navigation.state import NavState, state_from_stream, truth_navigation
+from strapdown_ros.core.navigation import multirate, state
+from strapdown_ros.core.navigation.multirate import *  # noqa: F403
+from strapdown_ros.core.navigation.state import *  # noqa: F403
 
-__all__ = [
-    "MODES",
-    "MultirateNavigator",
-    "NavSolution",
-    "SimultaneousNavigator",
-    "VerticalDamping",
-    "NavState",
-    "fast_cycle",
-    "navigate_multirate",
-    "navigate_simultaneous",
-    "state_from_stream",
-    "truth_navigation",
-]
+__all__ = [*multirate.__all__, *state.__all__]

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, geodetic_to_ecef
 from strapdown_ros.core.navigation.multirate import NavSolution
 from strapdown_ros.core.navigation.state import truth_navigation
@@ -31,10 +32,9 @@ __all__ = [
     "velocity_error_ned",
 ]
 
-Array = NDArray[np.float64]
 
 
-def position_error_ned(r_nav_e: Array, r_true_e: Array, lat_true: Array, lon_true: Array) -> Array:
+def position_error_ned(r_nav_e: F64, r_true_e: F64, lat_true: F64, lon_true: F64) -> F64:
     """Position error ``C_E^N(true) (r_nav - r_true)`` (m, NED of the true position).
 
     Parameters
@@ -47,12 +47,12 @@ def position_error_ned(r_nav_e: Array, r_true_e: Array, lat_true: Array, lon_tru
     return np.einsum("nij,nj->ni", dcm_ecef_to_ned(lat_true, lon_true), r_nav_e - r_true_e)
 
 
-def velocity_error_ned(v_nav_ned: Array, v_true_ned: Array) -> Array:
+def velocity_error_ned(v_nav_ned: F64, v_true_ned: F64) -> F64:
     """Velocity error ``v_nav - v_true`` (m/s), each ground velocity in its own NED frame."""
     return v_nav_ned - v_true_ned
 
 
-def attitude_error_young(c_b_n_nav: Array, c_b_n_true: Array) -> Array:
+def attitude_error_young(c_b_n_nav: F64, c_b_n_true: F64) -> F64:
     """Attitude error: Young 1980 eq. (28) angles (θ1, θ2, θ3) (rad).
 
     About the (up, east, north) axes of the true local level, of ``H = C_B^N(nav)
@@ -77,14 +77,14 @@ class NavErrors:
         Young angles (θ1, θ2, θ3), rad.
     """
 
-    t: Array
+    t: F64
     index: NDArray[np.int64]
-    position_ned: Array
-    velocity_ned: Array
-    attitude_young: Array
+    position_ned: F64
+    velocity_ned: F64
+    attitude_young: F64
 
     @property
-    def horizontal(self) -> Array:
+    def horizontal(self) -> F64:
         """Root-sum-square horizontal position error (m), Waldmann Table 3's measure."""
         return np.hypot(self.position_ned[:, 0], self.position_ned[:, 1])
 

@@ -35,8 +35,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import (
     A_WGS84,
     F_WGS84,
@@ -52,8 +53,6 @@ from strapdown_ros.core.gravity import GRAVITY_MODELS, gravity_ned
 from strapdown_ros.core.navigation import _kernels
 from strapdown_ros.core.navigation.state import NavState
 from strapdown_ros.core.rotations import dcm_from_quat, quat_from_dcm
-
-Array = NDArray[np.float64]
 
 __all__ = [
     "MODES",
@@ -85,18 +84,18 @@ class NavSolution:
         Fast steps per ``T_nav`` (N).
     """
 
-    t: Array
-    lat: Array
-    lon: Array
-    alt: Array
-    v_ned: Array
-    q_b_n: Array
+    t: F64
+    lat: F64
+    lon: F64
+    alt: F64
+    v_ned: F64
+    q_b_n: F64
     n: int
 
 
 def fast_cycle(
-    q: Array, dalpha: Array, dv: Array, dphi_l: Array, normalize: bool = True
-) -> tuple[Array, Array]:
+    q: F64, dalpha: F64, dv: F64, dphi_l: F64, normalize: bool = True
+) -> tuple[F64, F64]:
     """One ``T_nav`` cycle of the fast boundary layer: eqs. (19) and (33) over N increments.
 
     Runs the plain-Python form of :func:`~strapdown_ros.core.navigation._kernels.fast_cycle_kernel`
@@ -146,7 +145,7 @@ def _radii(lat: float, table1: bool) -> tuple[float, float]:
     return float(rn), float(re)
 
 
-def _check_increments(dalpha: ArrayLike, dv: ArrayLike, n: int) -> tuple[Array, Array]:
+def _check_increments(dalpha: ArrayLike, dv: ArrayLike, n: int) -> tuple[F64, F64]:
     """Validate N and the increment arrays (M, 3)."""
     if n < 1:
         raise ValueError(f"N must be >= 1, got N={n}")
@@ -158,8 +157,8 @@ def _check_increments(dalpha: ArrayLike, dv: ArrayLike, n: int) -> tuple[Array, 
 
 
 def _rates(
-    lat: float, alt: float, u: Array, table1_radii: bool
-) -> tuple[float, float, Array, Array]:
+    lat: float, alt: float, u: F64, table1_radii: bool
+) -> tuple[float, float, F64, F64]:
     """``λ'``, ``Λ'`` (9), ``ω_il^l = Ω_l + ρ_l`` (33) and ``2Ω_l + ρ_l`` (14), NED."""
     rn, re = _radii(lat, table1_radii)
     sl, cl = math.sin(lat), math.cos(lat)
@@ -374,11 +373,11 @@ class MultirateNavigator:
             )  # fmt: skip
         return out
 
-    def _times(self, cycles: int) -> Array:
+    def _times(self, cycles: int) -> F64:
         """Output times ``t_start + j T_nav`` from the integer cycle count (no drift)."""
         return self._t_start + self.t_nav * (self._done + np.arange(1, cycles + 1))
 
-    def _run_paper_kernel(self, da: Array, dvv: Array, cycles: int, haux: Array) -> NavSolution:
+    def _run_paper_kernel(self, da: F64, dvv: F64, cycles: int, haux: F64) -> NavSolution:
         st = self._state
         pos = np.empty((cycles + 1, 3))
         vel = np.empty((cycles + 1, 3))
@@ -393,7 +392,7 @@ class MultirateNavigator:
             self._times(cycles), pos[1:, 0], pos[1:, 1], pos[1:, 2], vel[1:], quat[1:], self.n
         )
 
-    def _run_paper_python(self, da: Array, dvv: Array, cycles: int, haux: Array) -> NavSolution:
+    def _run_paper_python(self, da: F64, dvv: F64, cycles: int, haux: F64) -> NavSolution:
         st, n, p = self._state, self.n, self.p
         t_nav = self.t_nav
         t_int = t_nav / p
@@ -426,7 +425,7 @@ class MultirateNavigator:
             pos[j], vel[j], quat[j] = (lat, lon, alt), u, q
         return NavSolution(self._times(cycles), pos[:, 0], pos[:, 1], pos[:, 2], vel, quat, n)
 
-    def _run_exact(self, da: Array, dvv: Array, cycles: int) -> NavSolution:
+    def _run_exact(self, da: F64, dvv: F64, cycles: int) -> NavSolution:
         r = np.empty((cycles + 1, 3))
         v = np.empty((cycles + 1, 3))
         c = np.empty((cycles + 1, 3, 3))
@@ -594,7 +593,7 @@ def _take_cycles(
     dalpha: ArrayLike,
     dv: ArrayLike,
     h_aux: ArrayLike | None,
-) -> tuple[Array, Array, int, Array]:
+) -> tuple[F64, F64, int, F64]:
     """The whole ``T_nav`` cycles of pending + new increments (the rest stays pending).
 
     Returns the increments of those cycles (contiguous), their number K and the auxiliary

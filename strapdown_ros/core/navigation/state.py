@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import (
     dcm_ecef_to_ned,
     e0_state_to_ecef,
@@ -22,8 +23,6 @@ from strapdown_ros.core.earth import (
 )
 from strapdown_ros.core.rotations import quat_from_dcm
 from strapdown_ros.core.stream import Stream
-
-Array = NDArray[np.float64]
 
 __all__ = ["NavState", "state_from_stream", "truth_navigation"]
 
@@ -51,11 +50,11 @@ class NavState:
     lat: float
     lon: float
     alt: float
-    v_ned: Array
-    q_b_n: Array
+    v_ned: F64
+    q_b_n: F64
 
 
-def _times(stream: Stream, index: NDArray[np.int64]) -> Array:
+def _times(stream: Stream, index: NDArray[np.int64]) -> F64:
     """Time since the E0 epoch of truth samples ``index`` (docs/interface.md §1-§2)."""
     offset_ns = stream.t0_ns - int(stream.e0_epoch_ns or stream.t0_ns)
     return (offset_ns + index.astype(np.float64) * stream.period_ns) * 1e-9
@@ -63,7 +62,7 @@ def _times(stream: Stream, index: NDArray[np.int64]) -> Array:
 
 def truth_navigation(
     stream: Stream, index: NDArray[np.int64] | None = None
-) -> tuple[Array, Array, Array, Array, Array, Array]:
+) -> tuple[F64, F64, F64, F64, F64, F64]:
     """Truth of a stream in navigation terms at truth samples ``index``.
 
     E0 → ECEF by ``r^E = C_E0^E R^E0``, ``v^E = C_E0^E V^E0 - ω_ie × r^E``,

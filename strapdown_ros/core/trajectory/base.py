@@ -12,15 +12,13 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import (
     dcm_ned_to_ecef,
     ecef_state_to_e0,
     geodetic_to_ecef,
 )
-
-Array = NDArray[np.float64]
 
 
 class TrajectoryError(ValueError):
@@ -70,12 +68,12 @@ class LocalTruth:
         Attitude ``C_B^N``, body FRD to NED.
     """
 
-    t: Array
-    lat: Array
-    lon: Array
-    alt: Array
-    v_ned: Array
-    c_b_n: Array
+    t: F64
+    lat: F64
+    lon: F64
+    alt: F64
+    v_ned: F64
+    c_b_n: F64
 
 
 @dataclass(frozen=True)
@@ -94,10 +92,10 @@ class TruthE0:
         Position ``R^E0`` (m).
     """
 
-    t: Array
-    c_b_e0: Array
-    v_e0: Array
-    r_e0: Array
+    t: F64
+    c_b_e0: F64
+    v_e0: F64
+    r_e0: F64
 
 
 class Trajectory(Protocol):
@@ -108,7 +106,7 @@ class Trajectory(Protocol):
         """Length of the trajectory (s)."""
         ...
 
-    def local_truth(self, t: Array) -> LocalTruth:
+    def local_truth(self, t: F64) -> LocalTruth:
         """Truth at times ``t`` (s since t0) in navigation terms."""
         ...
 

@@ -26,8 +26,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.rotations import dcm_from_euler, rot_y, rot_z
 from strapdown_ros.core.trajectory.base import LocalTruth
 from strapdown_ros.core.trajectory.latlon_path import LatLonPath
@@ -43,7 +44,6 @@ __all__ = [
     "lowest_altitude",
 ]
 
-Array = NDArray[np.float64]
 
 #: §6 defaults: cone half-angle, precession rate, CM velocity amplitudes and periods, duration.
 THETA_DEFAULT = math.pi / 2.0
@@ -156,7 +156,7 @@ class ConingTrajectory:
         """Length of the trajectory (s)."""
         return self._duration
 
-    def velocity_ned(self, t: ArrayLike) -> Array:
+    def velocity_ned(self, t: ArrayLike) -> F64:
         """CM velocity relative to the Earth, NED (m/s), shape (N, 3): §6 profile or zero."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
         if self.cm_motion == "rest":
@@ -164,7 +164,7 @@ class ConingTrajectory:
         w = 2.0 * np.pi / self.period_ned
         return self.amplitude_ned * np.sin(t[:, None] * w)
 
-    def altitude(self, t: ArrayLike) -> Array:
+    def altitude(self, t: ArrayLike) -> F64:
         """CM ellipsoidal altitude (m): ``h_0 - A_D P_D/(2π) (1 - cos(2π t/P_D))`` or ``h_0``."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
         if self.cm_motion == "rest":
@@ -173,17 +173,17 @@ class ConingTrajectory:
         # 1 - cos x = 2 sin²(x/2): no cancellation at small t.
         return self.alt0 - self.amplitude_ned[2] / w * 2.0 * np.sin(0.5 * w * t) ** 2
 
-    def _vn_ve_h(self, t: Array) -> tuple[Array, Array, Array]:
+    def _vn_ve_h(self, t: F64) -> tuple[F64, F64, F64]:
         v = self.velocity_ned(t)
         return v[:, 0], v[:, 1], self.altitude(t)
 
-    def attitude(self, t: ArrayLike) -> Array:
+    def attitude(self, t: ArrayLike) -> F64:
         """``C_B^N(t) = C_0 Rz(Ω_p t) Ry(θ) Rz(-Ω_p t)`` (FRD to NED), shape (N, 3, 3)."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
         a = self.precession_rate * t
         return self.c0 @ rot_z(a) @ self._ry @ rot_z(-a)
 
-    def omega_bl_b(self, t: ArrayLike) -> Array:
+    def omega_bl_b(self, t: ArrayLike) -> F64:
         """Waldmann §6 body rate relative to the local level, body axes (rad/s), (N, 3).
 
         ``ω_b^bl = Ω_p [-sin θ cos(Ω_p t), -sin θ sin(Ω_p t), cos θ - 1]``.

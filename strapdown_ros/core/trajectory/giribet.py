@@ -54,6 +54,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
 from strapdown_ros.core import _compiled as _k
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.rotations import quat_conjugate, quat_multiply
 from strapdown_ros.core.trajectory.base import TrajectoryError
 
@@ -72,7 +73,6 @@ __all__ = [
     "problem_q2",
 ]
 
-Array = NDArray[np.float64]
 
 
 # --------------------------------------------------------------------------------------------
@@ -82,7 +82,7 @@ Array = NDArray[np.float64]
 
 def breakpoint_continuity(
     breakpoints: ArrayLike, degree: int, continuity: int | Sequence[int] | ArrayLike
-) -> tuple[Array, NDArray[np.int64]]:
+) -> tuple[F64, NDArray[np.int64]]:
     """Validated breakpoints ``{t}_T`` and per-interior-breakpoint continuity orders.
 
     Parameters
@@ -142,7 +142,7 @@ def breakpoint_continuity(
 
 def knot_vector(
     breakpoints: ArrayLike, degree: int, continuity: int | Sequence[int] | ArrayLike
-) -> Array:
+) -> F64:
     """Knot sequence ``{ξ}`` of Theorem 1, eqs. (6)–(8).
 
     The end breakpoints are repeated ``k = p + 1`` times (eqs. (6), (8)); an interior
@@ -185,12 +185,12 @@ class DerivativeData:
     """
 
     order: int
-    tau: Array
-    values: Array
-    weights: Array
+    tau: F64
+    values: F64
+    weights: F64
 
 
-def _design(xi: Array, degree: int, tau: Array, order: int) -> sparse.csr_array:
+def _design(xi: F64, degree: int, tau: F64, order: int) -> sparse.csr_array:
     """Sparse matrix ``[B_j^{(order)}(τ_i)]`` (N, n) of the basis on knots ``xi``.
 
     ``BSpline.design_matrix`` gives the values. For a derivative, the coefficient map of
@@ -216,7 +216,7 @@ def _design(xi: Array, degree: int, tau: Array, order: int) -> sparse.csr_array:
     return sparse.csr_array(basis @ dmap)
 
 
-def _check_span(name: str, tau: Array, lo: float, hi: float) -> None:
+def _check_span(name: str, tau: F64, lo: float, hi: float) -> None:
     if tau.size and (tau[0] < lo or tau[-1] > hi):
         raise TrajectoryError(
             ("knots",),
@@ -225,7 +225,7 @@ def _check_span(name: str, tau: Array, lo: float, hi: float) -> None:
         )
 
 
-def _schoenberg_whitney(bp: Array, degree: int, tau: Array) -> None:
+def _schoenberg_whitney(bp: F64, degree: int, tau: F64) -> None:
     """Paper assumption (ii-c): at least ``k`` distinct value samples in every knot interval."""
     u = np.unique(tau)
     lo = np.searchsorted(u, bp[:-1], side="left")
@@ -290,8 +290,8 @@ def fit_spline(
         raise ValueError("fit_spline: function-value samples (order 0) are required")
     m = None
     normal = sparse.csr_array((n, n))
-    rhs: Array | None = None
-    ab: Array | None = None  # upper band of eq. (14)'s M (compiled path)
+    rhs: F64 | None = None
+    ab: F64 | None = None  # upper band of eq. (14)'s M (compiled path)
     for d in data:
         if d.order < 0 or d.order > p:
             raise ValueError(f"derivative order {d.order} is not in [0, degree={p}]")
@@ -469,12 +469,12 @@ class PiecewiseSpline:
         if self.edges.size != len(self.pieces) + 1:
             raise ValueError("PiecewiseSpline: need len(edges) == len(pieces) + 1")
 
-    def __call__(self, t: ArrayLike, nu: int = 0) -> Array:
+    def __call__(self, t: ArrayLike, nu: int = 0) -> F64:
         """``nu``-th derivative at times ``t`` (array (...,)), shape (..., m)."""
         t = np.asarray(t, dtype=np.float64)
         flat = t.reshape(-1)
         idx = np.clip(np.searchsorted(self.edges, flat, side="right") - 1, 0, len(self.pieces) - 1)
-        out: Array | None = None
+        out: F64 | None = None
         for i in np.unique(idx):
             sel = idx == i
             val = self.pieces[i](flat[sel], nu)
@@ -504,12 +504,12 @@ class QuaternionSpline:
     def __init__(self, qbar: BSpline | PiecewiseSpline) -> None:
         self.qbar = qbar
 
-    def q(self, t: ArrayLike) -> Array:
+    def q(self, t: ArrayLike) -> F64:
         """Unit quaternion ``q(t)`` (..., 4), scalar first."""
         qb = self.qbar(np.asarray(t, dtype=np.float64), 0)
         return qb / np.linalg.norm(qb, axis=-1, keepdims=True)
 
-    def q_dot(self, t: ArrayLike) -> Array:
+    def q_dot(self, t: ArrayLike) -> F64:
         """``q̇(t) = (I − q qᵀ) q̄̇ / ‖q̄‖`` (eq. (22), exact form), 1/s, shape (..., 4)."""
         t = np.asarray(t, dtype=np.float64)
         qb = self.qbar(t, 0)
@@ -518,13 +518,13 @@ class QuaternionSpline:
         q = qb / norm
         return (dqb - q * np.sum(q * dqb, axis=-1, keepdims=True)) / norm
 
-    def omega(self, t: ArrayLike) -> Array:
+    def omega(self, t: ArrayLike) -> F64:
         """Body rate ``ω`` (rad/s, body axes): vector part of ``2 q* ⊗ q̇`` (eq. (23))."""
         t = np.asarray(t, dtype=np.float64)
         return 2.0 * quat_multiply(quat_conjugate(self.q(t)), self.q_dot(t))[..., 1:]
 
 
-def align_quaternion_signs(q: ArrayLike) -> Array:
+def align_quaternion_signs(q: ArrayLike) -> F64:
     """Flip signs so consecutive quaternions have non-negative dot products (same rotations).
 
     ``q`` and ``−q`` describe one rotation; a component-wise fit needs a continuous path.
@@ -616,7 +616,7 @@ def problem_q1(
     step: float,
     rtol: float = 1e-12,
     atol: float = 1e-13,
-) -> tuple[Array, Array, Array]:
+) -> tuple[F64, F64, F64]:
     """Problem q1: integrate ``q̇ = ½ q ⊗ [0, ω̂]`` (eq. (21)) from ``q(t_1) = q0``.
 
     The integration (scipy ``solve_ivp``, DOP853, tight tolerances) restarts at every
@@ -651,13 +651,13 @@ def problem_q1(
     q = np.asarray(q0, dtype=np.float64)
     q = q / np.linalg.norm(q)
 
-    def rhs(t: float, y: Array) -> Array:
+    def rhs(t: float, y: F64) -> F64:
         w = omega(np.array([t]))[0]
         return 0.5 * quat_multiply(y, np.concatenate([[0.0], w]))
 
-    taus: list[Array] = [bp[:1]]
-    qs: list[Array] = [q[None, :]]
-    pieces: list[Array] = []
+    taus: list[F64] = [bp[:1]]
+    qs: list[F64] = [q[None, :]]
+    pieces: list[F64] = []
     for i in range(bp.size - 1):
         a, b = bp[i], bp[i + 1]
         n = max(int(np.ceil((b - a) / step)), 1)

@@ -12,16 +12,16 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.polynomial import chebyshev as cheb
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import geodetic_rates, radii
 
 __all__ = ["LatLonPath", "bounds", "sort_times"]
 
-Array = NDArray[np.float64]
 
 
-def _cheb_lobatto(n: int) -> tuple[Array, Array, Array, Array]:
+def _cheb_lobatto(n: int) -> tuple[F64, F64, F64, F64]:
     """Chebyshev–Lobatto machinery on ``x ∈ [-1, 1]`` with ``n`` points.
 
     Returns the ascending points ``x`` (n,), the values-to-coefficients matrix ``to_coef``
@@ -44,7 +44,7 @@ def _cheb_lobatto(n: int) -> tuple[Array, Array, Array, Array]:
     return x, to_coef, integ, quad
 
 
-def _clenshaw(c: Sequence[float], x: Array) -> Array:
+def _clenshaw(c: Sequence[float], x: F64) -> F64:
     """Chebyshev series ``Σ c_k T_k(x)`` at ``x`` (Clenshaw recurrence)."""
     if len(c) == 1:
         return np.full(x.size, c[0])
@@ -62,7 +62,7 @@ def _clenshaw(c: Sequence[float], x: Array) -> Array:
     return b1
 
 
-def sort_times(t: Array) -> tuple[Array | None, Array]:
+def sort_times(t: F64) -> tuple[F64 | None, F64]:
     """``(order, t[order])``, or ``(None, t)`` when ``t`` is already non-decreasing."""
     if t.size < 2 or not np.any(t[1:] < t[:-1]):
         return None, t
@@ -70,7 +70,7 @@ def sort_times(t: Array) -> tuple[Array | None, Array]:
     return order, t[order]
 
 
-def bounds(starts: Array, ts: Array) -> Array:
+def bounds(starts: F64, ts: F64) -> F64:
     """Slice bounds into sorted ``ts`` per interval beginning at ``starts`` (first/last open)."""
     return np.concatenate(([0], np.searchsorted(ts, starts[1:], side="left"), [ts.size]))
 
@@ -144,7 +144,7 @@ class LatLonPath:
         breaks: ArrayLike,
         lat0: float,
         lon0: float,
-        velocity: Callable[[Array], tuple[Array, Array, Array]],
+        velocity: Callable[[F64], tuple[F64, F64, F64]],
     ) -> None:
         self._velocity = velocity
         self.lat0, self.lon0 = float(lat0), float(lon0)
@@ -172,7 +172,7 @@ class LatLonPath:
             self._lo = np.sort(np.concatenate([self._lo, mid]))
             self._hi = np.sort(np.concatenate([self._hi, mid]))
 
-    def _solve(self) -> Array:
+    def _solve(self) -> F64:
         """Collocation on the current intervals; returns the intervals to halve."""
         x, to_coef, integ, quad = self._cheb
         mid = 0.5 * (self._lo + self._hi)
@@ -184,7 +184,7 @@ class LatLonPath:
         )
         qt = quad.T
 
-        def offsets(rate: Array) -> Array:
+        def offsets(rate: F64) -> F64:
             d = half[:, None] * (rate @ qt)
             start = np.concatenate(([0.0], np.cumsum(d[:-1, -1])))
             return start[:, None] + d
@@ -229,7 +229,7 @@ class LatLonPath:
         self.node_y = np.stack([lat.ravel(), lon.ravel()], axis=-1)
         return bad
 
-    def rates(self, t: ArrayLike, lat: ArrayLike) -> tuple[Array, Array]:
+    def rates(self, t: ArrayLike, lat: ArrayLike) -> tuple[F64, F64]:
         """``(φ', λ')`` (rad/s) at times ``t`` for latitudes ``lat`` (rad): the ODE's right side."""
         t = np.asarray(t, dtype=np.float64)
         vn, ve, h = self._velocity(t.ravel())
@@ -237,7 +237,7 @@ class LatLonPath:
         lat_dot, lon_dot, _ = geodetic_rates(np.asarray(lat).ravel(), h, v)
         return lat_dot.reshape(t.shape), lon_dot.reshape(t.shape)
 
-    def offsets_sorted(self, ts: Array) -> Array:
+    def offsets_sorted(self, ts: F64) -> F64:
         """Latitude and longitude minus their initial values (rad), (M, 2), for sorted ``ts``."""
         out = np.zeros((ts.size, 2))
         if not self._lo.size:
@@ -250,7 +250,7 @@ class LatLonPath:
                 out[sl, c] = self._start[j, c] + _clenshaw(self._series[j][c], x)
         return out
 
-    def derivative(self, t: ArrayLike) -> tuple[Array, Array]:
+    def derivative(self, t: ArrayLike) -> tuple[F64, F64]:
         """``(φ', λ')`` (rad/s) of the returned path at times ``t``: the rate interpolants.
 
         Equal to :meth:`rates` at the collocation nodes; elsewhere the difference is the
@@ -269,7 +269,7 @@ class LatLonPath:
                     out[sel, c] = _clenshaw(d[i, :, c].tolist(), x[sel])
         return out[:, 0].reshape(t.shape), out[:, 1].reshape(t.shape)
 
-    def __call__(self, t: ArrayLike) -> tuple[Array, Array]:
+    def __call__(self, t: ArrayLike) -> tuple[F64, F64]:
         """Latitude and longitude (rad) at times ``t`` (s), arrays shaped like ``t``."""
         t = np.asarray(t, dtype=np.float64)
         shape = t.shape

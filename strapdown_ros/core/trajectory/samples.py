@@ -46,6 +46,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline
 
 from strapdown_ros.core._compiled import matmul33
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import (
     OMEGA_IE,
     dcm_e0_to_ecef,
@@ -80,7 +81,6 @@ __all__ = [
     "samples_from_arrays",
 ]
 
-Array = NDArray[np.float64]
 
 #: Speed (m/s) below which the derived heading / pitch are held (no defined direction).
 DERIVED_ATTITUDE_MIN_SPEED = 0.1
@@ -206,16 +206,16 @@ class Samples:
     omega_frame : {"inertial", "earth"}
     """
 
-    t: Array
-    r_ecef: Array
-    v_ecef: Array | None = None
-    a_ecef: Array | None = None
-    c_b_e: Array | None = None
-    omega_b: Array | None = None
+    t: F64
+    r_ecef: F64
+    v_ecef: F64 | None = None
+    a_ecef: F64 | None = None
+    c_b_e: F64 | None = None
+    omega_b: F64 | None = None
     omega_frame: str = "inertial"
 
 
-def _dcm_from_euler(roll: Array, pitch: Array, heading: Array) -> Array:
+def _dcm_from_euler(roll: F64, pitch: F64, heading: F64) -> F64:
     """``rotations.dcm_from_euler``: ``C_B^N = Rz(heading) Ry(pitch) Rx(roll)``, rad in.
 
     Same bits, the stacked products compiled (:func:`~strapdown_ros.core._compiled.matmul33`).
@@ -223,7 +223,7 @@ def _dcm_from_euler(roll: Array, pitch: Array, heading: Array) -> Array:
     return matmul33(matmul33(rot_z(heading), rot_y(pitch)), rot_x(roll))
 
 
-def _arr(name: str, x: ArrayLike, n: int, width: int | tuple[int, ...] | None) -> Array:
+def _arr(name: str, x: ArrayLike, n: int, width: int | tuple[int, ...] | None) -> F64:
     a = np.asarray(x, dtype=np.float64)
     shape = (n,) if width is None else (n,) + ((width,) if isinstance(width, int) else width)
     if a.shape != shape:
@@ -234,7 +234,7 @@ def _arr(name: str, x: ArrayLike, n: int, width: int | tuple[int, ...] | None) -
     return a
 
 
-def check_times(name: str, t: ArrayLike) -> Array:
+def check_times(name: str, t: ArrayLike) -> F64:
     """``t`` as float64 if a 1-D, finite, strictly increasing array of >= 2 times (s).
 
     Raises ValueError naming ``name`` and the first offending sample otherwise.
@@ -342,7 +342,7 @@ def samples_from_arrays(
         given.append("roll/pitch/heading")
     if len(given) > 1:
         raise ValueError(f"attitude: give one form only, got {', '.join(given)}")
-    cbe: Array | None = None
+    cbe: F64 | None = None
     if c_b_e is not None:
         cbe = _arr("c_b_e", c_b_e, n, (3, 3))
     elif q_b_e is not None:
@@ -362,7 +362,7 @@ def samples_from_arrays(
     given = [k for k, v in vel.items() if v is not None]
     if len(given) > 1:
         raise ValueError(f"velocity: give one form only, got {', '.join(given)}")
-    ve: Array | None = None
+    ve: F64 | None = None
     if v_ecef is not None:
         ve = _arr("v_ecef", v_ecef, n, 3)
     elif v_ned is not None:
@@ -392,7 +392,7 @@ def samples_from_arrays(
 
 def _breakpoints(
     spec: SplineOptions, kind: str, duration: float, median_dt: float
-) -> tuple[Array, NDArray[np.int64]]:
+) -> tuple[F64, NDArray[np.int64]]:
     """Breakpoints (s since the first sample) and interior continuity of one spline.
 
     Errors are :class:`TrajectoryError` with ``where = (kind, option)``.
@@ -462,12 +462,12 @@ def _under(fit: str, exc: ValueError) -> TrajectoryError:
     return TrajectoryError((fit,), str(exc))
 
 
-def _derived_c_b_n(v_ned: Array) -> Array:
+def _derived_c_b_n(v_ned: F64) -> F64:
     """Heading along the horizontal velocity, pitch along the flight path, roll 0 (held)."""
     vh = np.hypot(v_ned[:, 0], v_ned[:, 1])
     speed = np.linalg.norm(v_ned, axis=1)
 
-    def held(value: Array, ok: NDArray[np.bool_]) -> Array:
+    def held(value: F64, ok: NDArray[np.bool_]) -> F64:
         if not np.any(ok):
             return np.zeros_like(value)
         idx = np.where(ok, np.arange(value.size), 0)
@@ -480,7 +480,7 @@ def _derived_c_b_n(v_ned: Array) -> Array:
     return _dcm_from_euler(np.zeros_like(pitch), pitch, heading)
 
 
-def _weights(name: str, w: float | ArrayLike, n: int) -> Array:
+def _weights(name: str, w: float | ArrayLike, n: int) -> F64:
     a = np.asarray(w, dtype=np.float64)
     if a.ndim == 0:
         a = np.full(n, float(a))
@@ -582,7 +582,7 @@ class SamplesTrajectory:
                 raise
             self._pos = position.result()
 
-    def _fit_attitude(self, samples: Samples, tl: Array, median_dt: float) -> None:
+    def _fit_attitude(self, samples: Samples, tl: F64, median_dt: float) -> None:
         """The attitude spline (``attitude_method`` fit or integrate) of the samples."""
         n = tl.size
         opts = self.options
@@ -654,12 +654,12 @@ class SamplesTrajectory:
 
     def _integrate(
         self,
-        tl: Array,
-        q0: Array,
-        omega: Array,
-        bp: Array,
+        tl: F64,
+        q0: F64,
+        omega: F64,
+        bp: F64,
         c: NDArray[np.int64],
-        w_rate: Array,
+        w_rate: F64,
     ) -> QuaternionSpline:
         """Problems ω, q1, q2 (rate spline of degree p − 1, continuity c − 1)."""
         opts = self.options
@@ -699,7 +699,7 @@ class SamplesTrajectory:
         """Span of the samples (s): last sample time minus first."""
         return self._duration
 
-    def _t(self, t: ArrayLike) -> Array:
+    def _t(self, t: ArrayLike) -> F64:
         t = np.asarray(t, dtype=np.float64)
         tol = 1e-9 * max(1.0, self._duration)
         if t.size and (np.min(t) < -tol or np.max(t) > self._duration + tol):
@@ -709,26 +709,26 @@ class SamplesTrajectory:
             )
         return np.clip(t, 0.0, self._duration)
 
-    def position_ecef(self, t: ArrayLike, nu: int = 0) -> Array:
+    def position_ecef(self, t: ArrayLike, nu: int = 0) -> F64:
         """``nu``-th derivative of the fitted ECEF position (m, m/s, m/s²), shape (..., 3).
 
         ``nu = 1`` is the velocity relative to the Earth in ECEF axes, ``nu = 2`` its rate.
         """
         return self._pos(self._t(t), nu)
 
-    def q_b_e0(self, t: ArrayLike) -> Array:
+    def q_b_e0(self, t: ArrayLike) -> F64:
         """Attitude quaternion ``q_B^E0`` (body FRD to E0), scalar first, unit, (..., 4)."""
         return self._att.q(self._t(t))
 
-    def q_dot_b_e0(self, t: ArrayLike) -> Array:
+    def q_dot_b_e0(self, t: ArrayLike) -> F64:
         """``dq_B^E0/dt`` (1/s), exact derivative of :meth:`q_b_e0` (Giribet eq. (22))."""
         return self._att.q_dot(self._t(t))
 
-    def omega_ib_b(self, t: ArrayLike) -> Array:
+    def omega_ib_b(self, t: ArrayLike) -> F64:
         """Consistent body rate ``ω_ib^B`` (rad/s, FRD) of eq. (23): ``q̇ = ½ q ⊗ [0, ω]``."""
         return self._att.omega(self._t(t))
 
-    def c_b_e(self, t: ArrayLike) -> Array:
+    def c_b_e(self, t: ArrayLike) -> F64:
         """``C_B^E = C_E0^E(t) C_B^E0`` (body FRD to ECEF), (..., 3, 3)."""
         t = self._t(t)
         return dcm_e0_to_ecef(t) @ dcm_from_quat(self._att.q(t))

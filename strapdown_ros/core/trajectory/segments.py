@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.polynomial import polynomial as npoly
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.earth import meridian_radius
 from strapdown_ros.core.trajectory.base import LocalTruth, TrajectoryError
 from strapdown_ros.core.trajectory.latlon_path import LatLonPath, bounds, sort_times
@@ -32,7 +33,6 @@ __all__ = [
     "smoothstep5",
 ]
 
-Array = NDArray[np.float64]
 
 #: Number of polynomial coefficients stored per channel (degree ≤ 7).
 _NCOEF = 8
@@ -64,7 +64,7 @@ _W = np.array([0.0, 0.0, 0.0, 10.0, -15.0, 6.0])
 _ONE_MINUS_W = np.array([1.0, 0.0, 0.0, -10.0, 15.0, -6.0])
 
 
-def smoothstep5(x: ArrayLike) -> Array:
+def smoothstep5(x: ArrayLike) -> F64:
     """C² blending weight ``w(x) = 10x³ - 15x⁴ + 6x⁵`` on [0, 1] (clipped outside).
 
     ``w(0) = 0``, ``w(1) = 1``, ``w' = w'' = 0`` at both ends, ``∫₀¹ w = 1/2``.
@@ -73,7 +73,7 @@ def smoothstep5(x: ArrayLike) -> Array:
     return x**3 * (10.0 + x * (-15.0 + 6.0 * x))
 
 
-def _pad(c: ArrayLike) -> Array:
+def _pad(c: ArrayLike) -> F64:
     c = np.trim_zeros(np.atleast_1d(np.asarray(c, dtype=np.float64)), "b")
     if c.size > _NCOEF:
         raise AssertionError("polynomial degree exceeds storage")
@@ -82,14 +82,14 @@ def _pad(c: ArrayLike) -> Array:
     return out
 
 
-def _integral(c: Array, length: float, start: float) -> Array:
+def _integral(c: F64, length: float, start: float) -> F64:
     """``start + L ∫₀^x c(ξ) dξ`` for a rate polynomial ``c`` in normalised time x = u/L."""
     out = npoly.polyint(c) * length
     out[0] = start
     return out
 
 
-def _horner(coef: Array, x: Array | float) -> Array:
+def _horner(coef: F64, x: F64 | float) -> F64:
     """Evaluate polynomials ``coef[..., k]`` (ascending) at ``x`` (broadcast over ``...``)."""
     out = coef[..., -1].copy()
     for k in range(coef.shape[-1] - 2, -1, -1):
@@ -97,7 +97,7 @@ def _horner(coef: Array, x: Array | float) -> Array:
     return out
 
 
-def _dcm_rph(roll: Array, pitch: Array, heading: Array) -> Array:
+def _dcm_rph(roll: F64, pitch: F64, heading: F64) -> F64:
     """``C_B^N = Rz(ψ) Ry(θ) Rx(φ)`` (N, 3, 3), written out (as ``dcm_from_euler``)."""
     cr, sr = np.cos(roll), np.sin(roll)
     cp, sp = np.cos(pitch), np.sin(pitch)
@@ -116,7 +116,7 @@ def _dcm_rph(roll: Array, pitch: Array, heading: Array) -> Array:
     return c
 
 
-def _horner_gather(coef: Array, k: Array, x: Array, channels: Sequence[int] | None = None) -> Array:
+def _horner_gather(coef: F64, k: F64, x: F64, channels: Sequence[int] | None = None) -> F64:
     """``coef[k[n], ch, ·]`` evaluated at ``x[n]``, shape (N, C) in ``channels`` order.
 
     Memory is O(N·C) (no (N, C, degree) gather).
@@ -179,11 +179,11 @@ class _Piece:
     t0: float
     length: float
     mode: int
-    coef: Array  # (_NCHAN, _NCOEF), ascending powers of x = (t - t0)/length
+    coef: F64  # (_NCHAN, _NCOEF), ascending powers of x = (t - t0)/length
     segment: int
 
 
-def _poly_extremes(c: Array) -> tuple[float, float]:
+def _poly_extremes(c: F64) -> tuple[float, float]:
     """Min and max of polynomial ``c(x)`` on x ∈ [0, 1] (ends and interior stationary points)."""
     xs = [0.0, 1.0]
     d = np.trim_zeros(npoly.polyder(c), "b")
@@ -283,7 +283,7 @@ class SegmentsTrajectory:
 
     # -- construction ------------------------------------------------------------------------
 
-    def _build(self, alt0: float, v0: Array, rph0: Array) -> list[_Piece]:
+    def _build(self, alt0: float, v0: F64, rph0: F64) -> list[_Piece]:
         pieces: list[_Piece] = []
         # State at the current boundary.
         t = 0.0
@@ -386,7 +386,7 @@ class SegmentsTrajectory:
     @staticmethod
     def _vertical(
         k: int, seg: Segment, blending: bool, length: float, c0: float, a0: float
-    ) -> Array:
+    ) -> F64:
         """Vertical speed up (m/s) over a track piece, ascending powers of x = u/length."""
         if not blending:
             return _pad([c0])  # the blending piece ended with zero vertical acceleration
@@ -504,14 +504,14 @@ class SegmentsTrajectory:
         """Total duration (s): the sum of the segment durations."""
         return self._duration
 
-    def _locate(self, t: Array) -> tuple[Array, Array]:
+    def _locate(self, t: F64) -> tuple[F64, F64]:
         k = np.clip(np.searchsorted(self._t0, t, side="right") - 1, 0, self._t0.size - 1)
         x = (t - self._t0[k]) / self._len[k]
         return k, x
 
     def _channels_sorted(
-        self, ts: Array, channels: Sequence[int] = range(_NCHAN)
-    ) -> tuple[Array, Array]:
+        self, ts: F64, channels: Sequence[int] = range(_NCHAN)
+    ) -> tuple[F64, F64]:
         """Piece index and ``channels`` (N, C) at non-decreasing times ``ts``, piece by piece.
 
         Same arithmetic per sample as :func:`_horner_gather` (leading zero coefficients
@@ -532,14 +532,14 @@ class SegmentsTrajectory:
                 vals[sl, col] = acc
         return k, vals
 
-    def _velocity_ned(self, k: Array, vals: Array) -> Array:
+    def _velocity_ned(self, k: F64, vals: F64) -> F64:
         track = self._mode[k] == _TRACK
         p, q = vals[:, _P], vals[:, _Q]
         vn = np.where(track, p * np.cos(q), p)
         ve = np.where(track, p * np.sin(q), q)
         return np.stack([vn, ve, vals[:, _VD]], axis=-1)
 
-    def _vn_ve_h(self, t: Array) -> tuple[Array, Array, Array]:
+    def _vn_ve_h(self, t: F64) -> tuple[F64, F64, F64]:
         order, ts = sort_times(np.asarray(t, dtype=np.float64).ravel())
         k, vals = self._channels_sorted(ts, (_P, _Q, _ALT))
         if order is not None:
@@ -550,7 +550,7 @@ class SegmentsTrajectory:
         ve = np.where(track, p * np.sin(q), q)
         return vn, ve, h
 
-    def _check_times(self, t: Array) -> None:
+    def _check_times(self, t: F64) -> None:
         tol = 1e-9 * max(1.0, self._duration)
         if t.size and (t.min() < -tol or t.max() > self._duration + tol):
             raise ValueError(
@@ -580,7 +580,7 @@ class SegmentsTrajectory:
         lat, lon = self._path.lat0 + off[:, 0], self._path.lon0 + off[:, 1]
         return LocalTruth(t=t, lat=lat, lon=lon, alt=alt, v_ned=v, c_b_n=c_b_n)
 
-    def euler_rates(self, t: ArrayLike) -> Array:
+    def euler_rates(self, t: ArrayLike) -> F64:
         """Euler-angle rates ``(φ', θ', ψ')`` (rad/s) at times ``t``, shape (N, 3)."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64)).ravel()
         k, x = self._locate(t)

@@ -1,0 +1,253 @@
+"""Linear covariance prediction against a Monte Carlo campaign's ensemble.
+
+:func:`predict_scenario` propagates the error-state covariance of
+:mod:`strapdown_ros.core.covariance` along the truth of a scenario's navigator: the truth
+Odometry and the *ideal* IMU increments of the navigator's input are read back from a bag written
+by ``generate_dataset`` (the IMU error model's input topic), the error parameters come from the
+scenario's ``imu_errors`` section, the damping and gravity model from its ``navigator`` section.
+:func:`read_ensemble` reads a ``strapdown-sim campaign`` directory; :func:`compare_ensemble`
+computes, per error component, the ensemble σ about the predicted mean (N degrees of freedom),
+the χ²(N) 95 % band ``σ_pred √(χ²_{0.025, N}/N) … σ_pred √(χ²_{0.975, N}/N)``, the fraction of
+epochs inside it after ``skip_s`` and the time-averaged ratio σ_ens / σ_pred.
+
+Components, as the navigator's error topics (docs/interface.md §4): position NED (m), velocity
+NED (m/s), Young's angles (up, east, north) (rad), which are φ in (up, east, north) to first
+order: ``θ = (-φ_D, φ_E, φ_N)``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from strapdown_ros.analysis.navigator_record import local_level_states
+from strapdown_ros.bag.reader import read_bag
+from strapdown_ros.config import Scenario, load_scenario
+from strapdown_ros.config.scenario import navigator_spec
+from strapdown_ros.core.array_types import F64
+from strapdown_ros.core.covariance import (
+    PropagationSteps,
+    VerticalDampingGains,
+    propagate_covariance,
+)
+from strapdown_ros.core.imu_errors import ImuErrorParameters
+from strapdown_ros.core.rotations import dcm_from_rotvec, rotvec_from_dcm
+from strapdown_ros.messages import imu_increments
+
+__all__ = [
+    "COMPONENTS",
+    "ComponentCheck",
+    "Ensemble",
+    "Prediction",
+    "campaign_scenario",
+    "compare_ensemble",
+    "predict_scenario",
+    "read_ensemble",
+    "steps_from_bag",
+]
+
+
+#: The 9 error components, as the campaign's ``errors.parquet`` columns.
+COMPONENTS = ("pos_n_m", "pos_e_m", "pos_d_m", "vel_n_mps", "vel_e_mps", "vel_d_mps",
+              "att_1_rad", "att_2_rad", "att_3_rad")  # fmt: skip
+
+
+def steps_from_bag(
+    bag: str | Path, imu_topic: str, truth_topic: str, cycles_per_step: int
+) -> tuple[int, PropagationSteps]:
+    """``(start_ns, steps)``: propagation steps of ``cycles_per_step`` IMU cycles along the truth.
+
+    The truth Odometry (every IMU cycle) and the ideal increments ``imu_topic`` are read from
+    ``bag``; the run starts at the first truth stamp that precedes an IMU cycle (as the
+    navigator does), the attitude in the middle of a cycle is the geodesic midpoint of the
+    truth at its ends. A trailing part step is dropped.
+    """
+    contents = read_bag(bag, [imu_topic, truth_topic])
+    inc = imu_increments(contents[imu_topic])  # type: ignore[arg-type]
+    odom = contents[truth_topic]
+    t0 = int(np.asarray(odom.stamps_ns)[0])  # type: ignore[attr-defined]
+    truth = local_level_states(odom, t0)
+    period = int(inc.period_ns)
+    imu_stamps = np.asarray(inc.stamps_ns, dtype=np.int64)
+    start = int(imu_stamps[0]) - period
+    i0 = int(np.searchsorted(truth.stamps_ns, start))
+    if i0 >= truth.stamps_ns.shape[0] or truth.stamps_ns[i0] != start:
+        raise ValueError(f"{bag}: no {truth_topic} message at the first IMU cycle's start")
+    m = min(imu_stamps.shape[0], truth.stamps_ns.shape[0] - 1 - i0)
+    m -= m % cycles_per_step
+    if m < cycles_per_step:
+        raise ValueError(f"{bag}: fewer than {cycles_per_step} IMU cycles")
+    rows = np.arange(i0, i0 + m + 1)
+    if not np.array_equal(truth.stamps_ns[rows[1:]], imu_stamps[:m]):
+        raise ValueError(f"{bag}: {truth_topic} is not at every {imu_topic} cycle")
+    c = truth.c_b_n[rows]
+    half = 0.5 * rotvec_from_dcm(np.swapaxes(c[:-1], -1, -2) @ c[1:])
+    c_mid = c[:-1] @ dcm_from_rotvec(half)
+    steps = PropagationSteps.from_cycles(
+        truth.t[rows] - truth.t[i0], cycles_per_step, truth.lat[rows], truth.alt[rows],
+        truth.v_ned[rows], c_mid, inc.dalpha[:m], inc.dv[:m], period * 1e-9,
+    )  # fmt: skip
+    return start, steps
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted mean and σ (K, 9) of :data:`COMPONENTS` at ``stamps_ns`` (K,)."""
+
+    stamps_ns: NDArray[np.int64]
+    mean: F64
+    sigma: F64
+    params: ImuErrorParameters
+
+
+def _to_components(nav: F64, sign: float = -1.0) -> F64:
+    """(δr, δv, φ) NED → the error topics' order: θ = (-φ_D, φ_E, φ_N) (``sign`` of φ_D:
+    -1 for means, +1 for standard deviations)."""
+    out = nav.copy()
+    out[:, 6], out[:, 7], out[:, 8] = sign * nav[:, 8], nav[:, 7], nav[:, 6]
+    return out
+
+
+def predict_scenario(
+    scenario: Scenario,
+    bag: str | Path,
+    params: ImuErrorParameters | None = None,
+    steps_per_output: int = 1,
+) -> Prediction:
+    """Covariance prediction for the scenario's navigator on its measured IMU.
+
+    ``bag``: the scenario generated (``generate_dataset``; the ideal IMU topic and the truth are
+    read). ``params``: the IMU error parameters (default: the scenario's ``imu_errors``).
+    ``steps_per_output``: propagation step in navigator output periods (default 1).
+    """
+    nav = navigator_spec(scenario)
+    spec = scenario.imu_errors
+    if nav is None or spec is None:
+        raise ValueError("the scenario needs a navigator and an imu_errors section")
+    ideal, measured = spec.topics(scenario.recording.topics)
+    if nav.imu_topic != measured:
+        raise ValueError(f"navigator.imu_topic: {nav.imu_topic} is not the measured IMU {measured}")
+    if nav.initial_errors is not None and any(
+        np.any(np.asarray(v) != 0) for v in nav.initial_errors.model_dump().values()
+    ):
+        raise ValueError("navigator.initial_errors: the prediction starts from zero errors")
+    params = spec.parameters() if params is None else params
+    damping = None
+    if nav.vertical_damping is not None:
+        if nav.vertical_damping.paper_signs:
+            raise ValueError("navigator.vertical_damping.paper_signs: the loop is unstable")
+        damping = VerticalDampingGains(nav.vertical_damping.k1, nav.vertical_damping.k2)
+    start, steps = steps_from_bag(bag, ideal, str(nav.truth_topic), nav.n * steps_per_output)
+    result = propagate_covariance(steps, params, gravity_model=str(nav.gravity_model),
+                                  damping=damping)  # fmt: skip
+    mean, sigma = result.navigation_moments()
+    stamps = start + np.round(steps.t * 1e9).astype(np.int64)
+    return Prediction(stamps, _to_components(mean), _to_components(sigma, 1.0), params)
+
+
+def campaign_scenario(out: str | Path) -> Scenario:
+    """The scenario of a campaign directory (its file and common overrides; run 0's seeds)."""
+    info = json.loads((Path(out) / "campaign.json").read_text(encoding="utf-8"))
+    return load_scenario(info["scenario"], list(info["common"]))
+
+
+@dataclass(frozen=True)
+class Ensemble:
+    """A campaign's errors: ``stamps_ns`` (K,), ``errors`` (R, K, 9) in :data:`COMPONENTS`."""
+
+    stamps_ns: NDArray[np.int64]
+    errors: F64
+
+
+def read_ensemble(out: str | Path) -> Ensemble:
+    """Every finished run's errors of a campaign directory (same stamps in every run)."""
+    from strapdown_ros.campaign.results import finished_runs, read_run_errors
+
+    out = Path(out)
+    runs = sorted(finished_runs(out))
+    if not runs:
+        raise ValueError(f"{out}: no finished run")
+    stamps, first = read_run_errors(out, runs[0])
+    errors = np.empty((len(runs),) + first.shape)
+    errors[0] = first
+    for i, r in enumerate(runs[1:], start=1):
+        s, e = read_run_errors(out, r)
+        if not np.array_equal(s, stamps):
+            raise ValueError(f"{out}: run {r} has other stamps than run {runs[0]}")
+        errors[i] = e
+    return Ensemble(np.asarray(stamps, dtype=np.int64), errors)
+
+
+@dataclass(frozen=True)
+class ComponentCheck:
+    """One component: ``inside`` (fraction of epochs after ``skip_s`` with σ_ens in the χ²(N)
+    95 % band), ``ratio_mean`` (time average of σ_ens / σ_pred there), min/max of the ratio,
+    final σ_pred and σ_ens."""
+
+    name: str
+    inside: float
+    ratio_mean: float
+    ratio_min: float
+    ratio_max: float
+    sigma_pred_final: float
+    sigma_ens_final: float
+
+
+def chi2_band(n: int) -> tuple[float, float]:
+    """The 95 % band of σ_ens / σ for N samples about the known mean: √(χ²_{.025,N}/N), …"""
+    return float(np.sqrt(chi2.ppf(0.025, n) / n)), float(np.sqrt(chi2.ppf(0.975, n) / n))
+
+
+def compare_ensemble(
+    prediction: Prediction, ensemble: Ensemble, skip_s: float = 60.0
+) -> tuple[list[ComponentCheck], dict[str, F64]]:
+    """Per-component checks and the series (t, σ_pred, σ_ens, mean_pred, mean_ens) at the
+    stamps common to both (from the ensemble's first stamp, which must be the prediction's)."""
+    if ensemble.stamps_ns[0] != prediction.stamps_ns[0]:
+        raise ValueError("the ensemble and the prediction start at different stamps")
+    common, i_pred, i_ens = np.intersect1d(
+        prediction.stamps_ns, ensemble.stamps_ns, assume_unique=True, return_indices=True
+    )
+    if common.shape[0] < 2:
+        raise ValueError("the ensemble and the prediction have fewer than 2 common stamps")
+    mean, sigma = prediction.mean[i_pred], prediction.sigma[i_pred]
+    errors = ensemble.errors[:, i_ens]
+    n = errors.shape[0]
+    s_ens = np.sqrt(np.mean((errors - mean) ** 2, axis=0))
+    t = (common - common[0]) * 1e-9
+    lo, hi = chi2_band(n)
+    late = t >= skip_s
+    checks = []
+    for j, name in enumerate(COMPONENTS):
+        r = s_ens[late, j] / sigma[late, j]
+        checks.append(ComponentCheck(
+            name, float(np.mean((r >= lo) & (r <= hi))), float(np.mean(r)), float(r.min()),
+            float(r.max()), float(sigma[-1, j]), float(s_ens[-1, j]),
+        ))  # fmt: skip
+    series = {"t": t, "sigma_pred": sigma, "sigma_ens": s_ens, "mean_pred": mean,
+              "mean_ens": errors.mean(axis=0)}  # fmt: skip
+    return checks, series
+
+
+def checks_table(checks: list[ComponentCheck], n: int) -> str:
+    """The checks as a Markdown table."""
+    lo, hi = chi2_band(n)
+    lines = [f"N = {n} runs, χ²(N) 95 % band of σ_ens/σ_pred: [{lo:.3f}, {hi:.3f}]", "",
+             "| component | σ_pred final | σ_ens final | epochs inside | mean ratio | min | max |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for c in checks:
+        lines.append(f"| {c.name} | {c.sigma_pred_final:.4g} | {c.sigma_ens_final:.4g} | "
+                     f"{100 * c.inside:.1f} % | {c.ratio_mean:.3f} | {c.ratio_min:.3f} | "
+                     f"{c.ratio_max:.3f} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def summary(checks: list[ComponentCheck]) -> dict[str, Any]:
+    """JSON-able form of the checks."""
+    return {c.name: c.__dict__ for c in checks}
