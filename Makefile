@@ -31,7 +31,8 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help setup test test-fast lint bench figures mutation run generate campaign clean distclean
+.PHONY: help setup test test-fast test-minimum test-overlay lint bench figures mutation run generate \
+	campaign clean distclean
 
 help:
 	@echo "make setup      create/update .venv (pinned deps, editable package, ament prefix)"
@@ -40,6 +41,8 @@ help:
 	@echo "make generate   the same scenario offline into out/default_offline, then its report"
 	@echo "make test       ruff check + pytest, every test (the CI command)"
 	@echo "make test-fast  ruff check + pytest -m \"not dds and not slow\" (no ROS process, rclpy blocked)"
+	@echo "make test-minimum  the fast tests with the oldest supported libraries on Python 3.12 (slow)"
+	@echo "make test-overlay  the fast tests in a stand-in of a Jazzy/noble system install (slow)"
 	@echo "make lint       ruff check only"
 	@echo "make bench      install the bench extras (pyins) and run every bench/bench_*.py"
 	@echo "make figures    re-measure the docs' figures (tools/figures.py) into docs/figures_measured.json"
@@ -92,6 +95,74 @@ test-fast: setup
 	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
 	$(VPY) -m pytest -m "$(FAST_MARKERS)" $(FAST_WORKERS) $(PYTEST_ARGS) || exit $$?; \
 	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
+
+# --- Supported versions, measured (slow; not part of make test) ------------------------------
+# Python 3.12 (Ubuntu 24.04's); override with MIN_PYTHON=/path/to/python3.12.
+MIN_PYTHON   ?= python3.12
+ROS_PINS      = grep -E '^(ros-|pip==|setuptools==)' requirements/constraints.txt
+# Never build these from source (a floor without a cp312 wheel is not a floor).
+BINARY_ONLY  := numpy,scipy,numba,llvmlite,matplotlib,contourpy,kiwisolver,pillow,pydantic-core,pyarrow
+FAST_PYTEST   = -m "$(FAST_MARKERS)" -p no:cacheprovider -q $(PYTEST_ARGS)
+
+# noble's matplotlib 3.6.3 (the minimum) has no cp312 wheel on PyPI: built once into
+# .noble-wheels against the system FreeType and Qhull (apt-get install libfreetype-dev
+# libqhull-dev pkg-config); test-minimum and test-overlay install it from there.
+NOBLE_WHEELS  := $(CURDIR)/.noble-wheels
+MPL_WHEEL     := $(NOBLE_WHEELS)/.matplotlib-3.6.3.stamp
+$(MPL_WHEEL):
+	mkdir -p $(NOBLE_WHEELS)
+	printf '[libs]\nsystem_freetype = true\nsystem_qhull = true\n' > $(NOBLE_WHEELS)/mplsetup.cfg
+	MPLSETUPCFG=$(NOBLE_WHEELS)/mplsetup.cfg $(MIN_PYTHON) -m pip wheel $(PIP_QUIET) --no-deps \
+	    -w $(NOBLE_WHEELS) matplotlib==3.6.3
+	@touch $@
+
+# The oldest supported version of every runtime library (requirements/minimum.txt, the table of
+# strapdown_ros/requirements_check.py), the ROS wheels of constraints.txt, the test tools at
+# their newest; then the fast tests. A fresh .venv-min each time.
+MIN_VENV := $(CURDIR)/.venv-min
+test-minimum: $(MPL_WHEEL)
+	rm -rf $(MIN_VENV) && $(MIN_PYTHON) -m venv $(MIN_VENV)
+	$(ROS_PINS) > $(MIN_VENV)/ros-pins.txt
+	$(MIN_VENV)/bin/python -m pip install $(PIP_QUIET) --upgrade pip -c $(MIN_VENV)/ros-pins.txt
+	$(MIN_VENV)/bin/python -m pip install $(PIP_QUIET) --only-binary=$(BINARY_ONLY) \
+	    --find-links $(NOBLE_WHEELS) \
+	    -r requirements/dev.txt -c requirements/minimum.txt -c $(MIN_VENV)/ros-pins.txt
+	$(MIN_VENV)/bin/python -m pip install $(PIP_QUIET) --no-deps --no-build-isolation -e .
+	$(MIN_VENV)/bin/python tools/install_ament_prefix.py --symlink
+	$(MIN_VENV)/bin/python -m pip freeze --exclude-editable > $(MIN_VENV)/freeze.txt
+	AMENT_PREFIX_PATH=$(MIN_VENV) PATH=$(MIN_VENV)/bin:$$PATH \
+	    $(MIN_VENV)/bin/python -m pytest $(FAST_PYTEST)
+
+# A stand-in of the documented system install (README, "Using it on a real ROS 2 Jazzy
+# install"): .venv-noble holds what apt and /opt/ros/jazzy give on Ubuntu 24.04 (the noble
+# versions of numpy, scipy, PyYAML, matplotlib, pydantic 1.10, pytest; test/data/rosdep/
+# noble_apt.yaml) and the ROS wheels; .venv-overlay sees it as system site-packages (a .pth
+# calling site.addsitedir, so that its own .pth files run as a system site's do: the ROS wheels'
+# library loader; --system-site-packages reaches only the base interpreter) and gets the one pip
+# command (requirements/ros-overlay.txt); then the fast tests, with the test tools pip adds and
+# the ROS libraries on LD_LIBRARY_PATH (what sourcing /opt/ros/jazzy/setup.bash does).
+NOBLE_VENV    := $(CURDIR)/.venv-noble
+OVERLAY_VENV  := $(CURDIR)/.venv-overlay
+NOBLE_PYTHON_LIBS := numpy==1.26.4 scipy==1.11.4 PyYAML==6.0.1 matplotlib==3.6.3 \
+	pydantic==1.10.14 pytest==7.4.4 pytest-timeout==2.2.0 setuptools==68.1.2 wheel==0.42.0
+test-overlay: $(MPL_WHEEL)
+	rm -rf $(NOBLE_VENV) $(OVERLAY_VENV) && $(MIN_PYTHON) -m venv $(NOBLE_VENV)
+	$(ROS_PINS) | grep -v '^setuptools==' > $(NOBLE_VENV)/ros-pins.txt
+	$(NOBLE_VENV)/bin/python -m pip install $(PIP_QUIET) --find-links $(NOBLE_WHEELS) \
+	    $(NOBLE_PYTHON_LIBS) -c $(NOBLE_VENV)/ros-pins.txt \
+	    ros-jazzy-rclpy ros-jazzy-common-interfaces ros-jazzy-rmw-fastrtps-cpp
+	$(MIN_PYTHON) -m venv $(OVERLAY_VENV)
+	$(NOBLE_VENV)/bin/python -c 'import site; print(f"import site; site.addsitedir({site.getsitepackages()[0]!r})")' \
+	    > $$($(OVERLAY_VENV)/bin/python -c 'import site; print(site.getsitepackages()[0])')/noble-system.pth
+	$(OVERLAY_VENV)/bin/python -m pip install $(PIP_QUIET) -r requirements/ros-overlay.txt
+	$(OVERLAY_VENV)/bin/python -m pip freeze --exclude-editable > $(OVERLAY_VENV)/freeze.txt
+	$(OVERLAY_VENV)/bin/python -m pip install $(PIP_QUIET) mpmath ambiance mcap-ros2-support ruff
+	$(OVERLAY_VENV)/bin/python -m pip install $(PIP_QUIET) --no-deps --no-build-isolation -e .
+	$(OVERLAY_VENV)/bin/python tools/install_ament_prefix.py --symlink
+	AMENT_PREFIX_PATH=$(OVERLAY_VENV) PATH=$(OVERLAY_VENV)/bin:$$PATH \
+	    LD_LIBRARY_PATH=$$($(NOBLE_VENV)/bin/python -c \
+	        'import ros_wheels_bootstrapper as b; print(b.get_ros_paths())') \
+	    $(OVERLAY_VENV)/bin/python -m pytest $(FAST_PYTEST)
 
 # Benchmark-only dependencies (pyins for bench/bench_peers.py), pinned in requirements/bench.txt
 # and installed into .venv on top of the locked environment; `make test` does not need them.
@@ -151,7 +222,7 @@ clean:
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean
-	rm -rf $(VENV)
+	rm -rf $(VENV) .venv-min .venv-noble .venv-overlay .noble-wheels
 
 # The benchmark suite (docs/suite.md): fixed-seed scenarios generated into out/suite/<name>.
 # SUITE_ARGS passes options to generate, e.g. SUITE_ARGS="--duration 60".

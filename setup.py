@@ -1,12 +1,40 @@
 """Setuptools script of strapdown_ros (ament_python build type)."""
 
+import importlib.util
 import os
+import sys
 from glob import glob
 
 from setuptools import find_packages, setup
 
 PACKAGE_NAME = "strapdown_ros"
 SHARE = os.path.join("share", PACKAGE_NAME)
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _requirements_table():
+    """strapdown_ros/requirements_check.py (stdlib only), loaded by path: the one table of the
+    runtime libraries and their oldest supported versions."""
+    path = os.path.join(HERE, PACKAGE_NAME, "requirements_check.py")
+    spec = importlib.util.spec_from_file_location("_strapdown_requirements", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up while it executes
+    spec.loader.exec_module(module)
+    return module
+
+
+REQ = _requirements_table()
+#: Node executables: each answers --help (and bad arguments) in strapdown_ros/nodes/usage.py,
+#: without importing rclpy, then runs strapdown_ros.nodes.<name>:main.
+NODE_EXECUTABLES = (
+    "trajectory_node",
+    "variation_node",
+    "navigator_node",
+    "imu_model_node",
+    "aiding_node",
+    "bag_recorder",
+    "bag_player",
+)
 
 
 def _tree_data_files(top):
@@ -33,7 +61,12 @@ setup(
         (os.path.join(SHARE, "launch"), sorted(glob("launch/*.launch.py"))),
         *_tree_data_files("config"),
     ],
-    install_requires=["setuptools"],
+    # rclpy and the message packages come from the ROS install (package.xml), not from pip.
+    install_requires=["setuptools"] + [f"{d}>={REQ.MINIMUM[d]}" for d in REQ.CORE],
+    extras_require={
+        extra: [f"{d}>={REQ.MINIMUM[d]}" for d in dists]
+        for extra, (_what, dists) in REQ.EXTRAS.items()
+    },
     zip_safe=True,
     maintainer="strapdown_ros maintainers",
     maintainer_email="maintainer@example.com",
@@ -42,17 +75,11 @@ setup(
         "strapdown navigator and rosbag2 datasets for ROS 2."
     ),
     license="Apache-2.0",
-    python_requires=">=3.11",
+    python_requires=">=" + ".".join(map(str, REQ.MINIMUM_PYTHON)),
     entry_points={
         "console_scripts": [
             "strapdown-sim = strapdown_ros.cli:main",
-            "trajectory_node = strapdown_ros.nodes.trajectory_node:main",
-            "variation_node = strapdown_ros.nodes.variation_node:main",
-            "navigator_node = strapdown_ros.nodes.navigator_node:main",
-            "imu_model_node = strapdown_ros.nodes.imu_model_node:main",
-            "aiding_node = strapdown_ros.nodes.aiding_node:main",
-            "bag_recorder = strapdown_ros.nodes.bag_recorder:main",
-            "bag_player = strapdown_ros.nodes.bag_player:main",
+            *(f"{n} = strapdown_ros.nodes.usage:{n}" for n in NODE_EXECUTABLES),
         ],
     },
 )

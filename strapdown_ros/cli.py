@@ -656,9 +656,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     behind a one-line summary.
     """
     args = build_parser().parse_args(argv)
+    from strapdown_ros.requirements_check import MissingDependencyError, exit_if_unsupported
+
+    exit_if_unsupported("strapdown-sim")  # a library older than supported: say so, exit 1
     _stop_on_signals()
     try:
         return _dispatch(args)
+    except MissingDependencyError as exc:  # an optional feature's library (campaign, magnetometer)
+        print(f"strapdown-sim {args.command}: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt as exc:
         described = _describe_output(getattr(args, "out", None), args.command)
         how = f"stopped by {exc}" if isinstance(exc, Stopped) else "interrupted"

@@ -30,13 +30,13 @@ EXEC_DEPENDS = {
 TEST_DEPENDS = {"python3-pytest", "python3-pytest-timeout"}
 CONSOLE_SCRIPTS = {
     "strapdown-sim": "strapdown_ros.cli:main",
-    "trajectory_node": "strapdown_ros.nodes.trajectory_node:main",
-    "variation_node": "strapdown_ros.nodes.variation_node:main",
-    "navigator_node": "strapdown_ros.nodes.navigator_node:main",
-    "imu_model_node": "strapdown_ros.nodes.imu_model_node:main",
-    "aiding_node": "strapdown_ros.nodes.aiding_node:main",
-    "bag_recorder": "strapdown_ros.nodes.bag_recorder:main",
-    "bag_player": "strapdown_ros.nodes.bag_player:main",
+    "trajectory_node": "strapdown_ros.nodes.usage:trajectory_node",
+    "variation_node": "strapdown_ros.nodes.usage:variation_node",
+    "navigator_node": "strapdown_ros.nodes.usage:navigator_node",
+    "imu_model_node": "strapdown_ros.nodes.usage:imu_model_node",
+    "aiding_node": "strapdown_ros.nodes.usage:aiding_node",
+    "bag_recorder": "strapdown_ros.nodes.usage:bag_recorder",
+    "bag_player": "strapdown_ros.nodes.usage:bag_player",
 }
 
 

@@ -145,7 +145,9 @@ def run_campaign(
     from strapdown_ros.campaign.engine import dask_client, run_tasks
     from strapdown_ros.campaign.report import write_campaign_report
     from strapdown_ros.campaign.results import collect, finished_runs, write_run
+    from strapdown_ros.requirements_check import require_extra
 
+    require_extra("campaign")  # dask, distributed, pyarrow: say so before any work
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ValueError(f"--runs must be an integer >= 1, got {runs!r}")
     varies = [parse_vary(v) for v in vary or []]

@@ -124,7 +124,9 @@ def igrf_coefficients(year: float) -> tuple[np.ndarray, np.ndarray]:
     Degree 13 from 2000 on (10 before 1995, per IGRF); linear between the 5-year models,
     secular variation after 2025. Arrays are read-only (cached).
     """
-    from pyIGRF14.loadCoeffs import get_coeffs
+    from strapdown_ros.requirements_check import require
+
+    get_coeffs = require("pyIGRF14.loadCoeffs", "magnetometer").get_coeffs
 
     if not 1900.0 <= year <= 2030.0:
         raise ValueError(f"IGRF-14 covers 1900-2030, got the year {year}")
