@@ -65,9 +65,14 @@ def test_report_passes_and_labels_the_mounted_axes(bag, tmp_path):
 def test_report_header_names_the_imu_a_solution_consumes(bag, tmp_path):
     """With ``navigator.imu_topic`` in the bag's metadata the header says ideal or measured;
     without it, that the metadata does not record it."""
-    proc = _cli("report", str(bag), "--out", str(tmp_path / "plain"), "--no-exactness")
+    plain = tmp_path / "plain"
+    shutil.copytree(bag, plain)
+    meta = yaml.safe_load((plain / "metadata.yaml").read_text())
+    meta["rosbag2_bagfile_information"]["custom_data"].pop("navigator.imu_topic", None)
+    (plain / "metadata.yaml").write_text(yaml.safe_dump(meta))
+    proc = _cli("report", str(plain), "--no-exactness")
     assert proc.returncode == 0, proc.stderr
-    md = (tmp_path / "plain" / "report.md").read_text()
+    md = (plain / "report" / "report.md").read_text()
     assert "solution `/navigator`: the bag's metadata does not record which IMU" in md
     for topic, kind in (("/variation/imu_measured", "measured"), ("/variation/imu", "ideal")):
         copy = tmp_path / f"copy_{kind}"

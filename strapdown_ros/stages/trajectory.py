@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch, clock_batch, stream_batches
+from strapdown_ros.bag.batches import Batch, clock_batch
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.trajectory import IncrementsTrajectorySpec, core_initial
 from strapdown_ros.core.gravity import gravitation
@@ -35,6 +35,7 @@ from strapdown_ros.core.trajectory.base import TrajectoryError, local_to_e0
 from strapdown_ros.messages import stream_from_messages
 from strapdown_ros.plan.model import Plan
 from strapdown_ros.plan.resolve import resolve_plan
+from strapdown_ros.stages.recording_batches import named_stream_batches
 
 __all__ = [
     "as_plan",
@@ -257,22 +258,6 @@ def _truncate(stream: Stream, cycles: int) -> Stream:
         c_b_e0=stream.c_b_e0[: cycles + 1],
         v_e0=stream.v_e0[: cycles + 1],
         r_e0=stream.r_e0[: cycles + 1],
-    )
-
-
-def named_stream_batches(
-    scenario: Scenario, stream: Stream, name: str, body_frame: str, fix: bool = True
-) -> list[Batch]:
-    """Serialized batches of ``stream`` on the recording topics ``<name>_imu``, ``<name>_odom``
-    (and ``<name>_fix``), in the recording frame ``body_frame`` and the Earth frame."""
-    rec = scenario.recording
-    return stream_batches(
-        stream,
-        imu_topic=rec.topics[f"{name}_imu"],
-        odom_topic=rec.topics[f"{name}_odom"],
-        fix_topic=rec.topics[f"{name}_fix"] if fix else None,
-        body_frame=rec.frames[body_frame],
-        earth_frame=rec.frames["earth"],
     )
 
 

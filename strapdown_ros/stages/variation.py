@@ -33,7 +33,7 @@ from strapdown_ros.stages.intake import (
     screen,
     stamp_verdict,
 )
-from strapdown_ros.stages.trajectory import named_stream_batches
+from strapdown_ros.stages.recording_batches import named_stream_batches
 
 __all__ = [
     "IMU",
