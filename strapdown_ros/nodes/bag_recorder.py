@@ -86,6 +86,7 @@ class BagRecorder(SignalStop, Node):
         super().__init__(NODE_NAME)
         scenario_path = declare_string(self, "scenario", "", "scenario YAML file (topic list)")
         overrides = declare_string_array(self, "overrides", "scenario overrides dotted.key=value")
+        duration_s = declare_number(self, "duration_s", 0.0, "duration (s); 0 = the scenario's")
         topic_specs = declare_string_array(self, "topics", "topics to record: NAME[=pkg/msg/Type]")
         output = declare_string(self, "output", "", "bag directory to write (required)")
         storage = declare_string(self, "storage", "", "mcap | sqlite3 (default: scenario's)")
@@ -147,7 +148,10 @@ class BagRecorder(SignalStop, Node):
                 f"must be one of: {', '.join(RELIABILITIES)}; got {self.reliability!r}",
             )
 
-        scenario = load_scenario(scenario_path, overrides) if scenario_path else None
+        scenario = (
+            load_scenario(scenario_path, overrides, duration_s if duration_s > 0 else None)
+            if scenario_path else None
+        )  # fmt: skip
         plan = resolve_plan(scenario) if scenario is not None else None
         if storage == "":
             storage = scenario.recording.storage if scenario is not None else "mcap"

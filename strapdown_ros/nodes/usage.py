@@ -253,9 +253,12 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
     "bag_recorder": (
         ("scenario", "", "scenario YAML file (topic list)"),
         ("overrides", [""], "scenario overrides dotted.key=value"),
+        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
         ("topics", [""], "topics to record: NAME[=pkg/msg/Type]"),
         ("output", "", "bag directory to write (required)"),
         ("storage", "", "mcap | sqlite3 (default: scenario's)"),
+        ("compression", "", "MCAP chunk compression none | zstd | lz4 (default: scenario's, "
+         "else none)"),
         ("force", False, "replace an existing bag directory"),
         ("flush_period_s", 1.0, "seconds per flush"),
         ("fsync", False, "fsync the data file at every flush"),
@@ -278,11 +281,15 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("bag", "", "bag directory to play (required)"),
         ("rate_factor", 1.0, "speed over real time; <= 0: as fast as possible"),
         ("start_offset_s", 0.0, "skip this many seconds from the bag's start"),
+        ("duration_s", 0.0, "play this many seconds of the bag from the start; 0: all"),
         ("loop", False, "start over at the end, until stopped"),
         ("topics", [""], "topics to play (default: all)"),
         ("remap", [""], "renames FROM:=TO"),
         ("publish_clock", True, "publish /clock"),
         ("clock_topic", "/clock", "topic of the clock"),
+        ("clock_rate_hz", 0.0, "/clock ticks per second of bag time; 0: every log time"),
+        ("pacing_warn_ms", 50.0, "warn while playing when publications are later than this; "
+         "0: never"),
         ("qos_depth", 1000, "publisher history depth"),
         ("wait_for_subscribers", 0, "subscriptions to wait for on every topic"),
         ("wait_timeout_s", 10.0, "seconds to wait"),
