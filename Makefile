@@ -31,8 +31,8 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export RMW_IMPLEMENTATION := rmw_fastrtps_cpp
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help setup test test-fast test-minimum test-overlay lint bench run generate campaign clean \
-	distclean
+.PHONY: help setup test test-fast test-minimum test-overlay lint bench figures mutation run generate \
+	campaign clean distclean
 
 help:
 	@echo "make setup      create/update .venv (pinned deps, editable package, ament prefix)"
@@ -45,6 +45,8 @@ help:
 	@echo "make test-overlay  the fast tests in a stand-in of a Jazzy/noble system install (slow)"
 	@echo "make lint       ruff check only"
 	@echo "make bench      install the bench extras (pyins) and run every bench/bench_*.py"
+	@echo "make figures    re-measure the docs' figures (tools/figures.py) into docs/figures_measured.json"
+	@echo "make mutation   mutmut on the modules that carry the product's claims, fast tests"
 	@echo "make clean      remove outputs and caches; make distclean also removes .venv"
 	@echo "PYTHON=$(PYTHON)"
 
@@ -73,10 +75,15 @@ $(TF2_STAMP): $(SETUP_STAMP) tools/build_tf2_msgs.py requirements/tf2_build.txt
 lint: setup
 	$(VPY) -m ruff check .
 
-# Lint and tests both run; the target fails if either failed.
+# Lint and tests both run; the target fails if either failed. The tests without ROS processes
+# run on two workers (as test-fast), then the dds tests one at a time (each starts processes
+# over DDS); a part with nothing selected (pytest's exit status 5) is no failure.
 test: setup
 	@lint=0; $(VPY) -m ruff check . || lint=$$?; \
-	$(VPY) -m pytest $(PYTEST_ARGS) || exit $$?; \
+	$(VPY) -m pytest -m "not dds" $(FAST_WORKERS) $(PYTEST_ARGS); rc=$$?; \
+	if [ $$rc != 0 ] && [ $$rc != 5 ]; then exit $$rc; fi; \
+	$(VPY) -m pytest -m dds $(PYTEST_ARGS); rc=$$?; \
+	if [ $$rc != 0 ] && [ $$rc != 5 ]; then exit $$rc; fi; \
 	if [ $$lint != 0 ]; then echo "ruff check failed (see above)"; exit $$lint; fi
 
 # The fast tier: no test that starts ROS processes (marker dds, set automatically by
@@ -173,6 +180,22 @@ bench: setup $(BENCH_STAMP)
 	    echo "== $$f"; $(VPY) "$$f" || exit $$?; \
 	done; \
 	[ $$found = 1 ] || echo "no bench/bench_*.py yet"
+
+# The docs' figures that a command re-measures (docs/figures.yaml names the command of every
+# figure), written with the commit and load average into docs/figures_measured.json;
+# test/test_figures.py checks the docs quote them. FIGURES_ARGS="--only serialize_speedup" etc.
+FIGURES_ARGS ?=
+figures: setup
+	$(VPY) tools/figures.py $(FIGURES_ARGS)
+
+# Mutation testing (mutmut, configured in setup.cfg [mutmut]): mutants of the modules listed
+# there, each run against the fast tests that cover it. The whole set takes hours on 2 cores;
+# MUTATION_ARGS narrows it, e.g. MUTATION_ARGS="strapdown_ros.core.allan*". Results:
+# `.venv/bin/mutmut results`, a survivor's diff: `.venv/bin/mutmut show NAME`.
+MUTATION_ARGS ?=
+mutation: setup
+	$(VPY) -m pip install -q -r requirements/mutation.txt
+	$(VPY) -m mutmut run $(MUTATION_ARGS)
 
 # The main job: the live pipeline (nodes as processes over DDS, recorded into a bag) on the
 # default 10-minute flight at RUN_RATE_FACTOR x real time, then the report of the bag.
