@@ -68,6 +68,33 @@ DESCRIPTIONS: dict[str, str] = {
     ),
 }
 
+#: What every batched-input node (nodes/_batched.py) declares: its QoS and batching ...
+_BATCHED_QOS: tuple[tuple[str, object, str], ...] = (
+    ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
+    ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
+    (
+        "batch_period_s",
+        0.01,
+        "longest wait (s) of a received message before it is processed while input keeps "
+        "coming: messages are decoded, computed and serialized in batches (latency vs "
+        "CPU)",
+    ),
+)
+#: ... and its end, handshake, flow-control and executor parameters.
+_BATCHED_TAIL: tuple[tuple[str, object, str], ...] = (
+    ("idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"),
+    ("wait_for_subscribers", 0, "output subscriptions to wait for before subscribing"),
+    ("wait_timeout_s", 10.0, "seconds to wait"),
+    ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
+    (
+        "report_progress",
+        False,
+        "publish the input taken / output published per topic for flow control "
+        "(nodes/flow.py)",
+    ),
+    ("executor", "events", "rclpy executor: events | single_threaded"),
+)
+
 #: Every parameter each node declares: (name, default, description), in declaration order.
 PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
     "trajectory_node": (
@@ -118,27 +145,9 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
             "/variation/reference/odom",
             "topic (default recording.topics.variation_reference_odom)",
         ),
-        ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
-        ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
-        (
-            "batch_period_s",
-            0.01,
-            "longest wait (s) of a received message before it is processed while input keeps "
-            "coming: messages are decoded, computed and serialized in batches (latency vs "
-            "CPU)",
-        ),
+        *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last cycle or idle_timeout_s"),
-        ("idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"),
-        ("wait_for_subscribers", 0, "output subscriptions to wait for before subscribing"),
-        ("wait_timeout_s", 10.0, "seconds to wait"),
-        ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
-        (
-            "report_progress",
-            False,
-            "publish the input taken / output published per topic for flow control "
-            "(nodes/flow.py)",
-        ),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        *_BATCHED_TAIL,
     ),
     "navigator_node": (
         ("scenario", "", "scenario YAML file (its navigator section)"),
@@ -169,27 +178,9 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
             "/navigator/error/attitude",
             "output topic (recording.topics.navigator_error_attitude)",
         ),
-        ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
-        ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
-        (
-            "batch_period_s",
-            0.01,
-            "longest wait (s) of a received message before it is processed while input keeps "
-            "coming: messages are decoded, computed and serialized in batches (latency vs "
-            "CPU)",
-        ),
+        *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last output or idle_timeout_s"),
-        ("idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"),
-        ("wait_for_subscribers", 0, "output subscriptions to wait for before subscribing"),
-        ("wait_timeout_s", 10.0, "seconds to wait"),
-        ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
-        (
-            "report_progress",
-            False,
-            "publish the input taken / output published per topic for flow control "
-            "(nodes/flow.py)",
-        ),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        *_BATCHED_TAIL,
     ),
     "imu_model_node": (
         ("scenario", "", "scenario YAML file (required)"),
@@ -197,27 +188,9 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
         ("input_topic", "/variation/imu", "ideal Imu topic (default imu_errors.input_topic)"),
         ("output_topic", "/variation/imu_measured", "measured Imu topic (imu_errors.output_topic)"),
-        ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
-        ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
-        (
-            "batch_period_s",
-            0.01,
-            "longest wait (s) of a received message before it is processed while input keeps "
-            "coming: messages are decoded, computed and serialized in batches (latency vs "
-            "CPU)",
-        ),
+        *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last cycle or idle_timeout_s"),
-        ("idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"),
-        ("wait_for_subscribers", 0, "output subscriptions to wait for before subscribing"),
-        ("wait_timeout_s", 10.0, "seconds to wait"),
-        ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
-        (
-            "report_progress",
-            False,
-            "publish the input taken / output published per topic for flow control "
-            "(nodes/flow.py)",
-        ),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        *_BATCHED_TAIL,
     ),
     "aiding_node": (
         ("scenario", "", "scenario YAML file (required)"),
@@ -228,27 +201,9 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
             "/reference/odom",
             "truth Odometry topic (default recording.topics.reference_odom)",
         ),
-        ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
-        ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
-        (
-            "batch_period_s",
-            0.01,
-            "longest wait (s) of a received message before it is processed while input keeps "
-            "coming: messages are decoded, computed and serialized in batches (latency vs "
-            "CPU)",
-        ),
+        *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last truth message or idle_timeout_s"),
-        ("idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"),
-        ("wait_for_subscribers", 0, "output subscriptions to wait for before subscribing"),
-        ("wait_timeout_s", 10.0, "seconds to wait"),
-        ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
-        (
-            "report_progress",
-            False,
-            "publish the input taken / output published per topic for flow control "
-            "(nodes/flow.py)",
-        ),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        *_BATCHED_TAIL,
     ),
     "bag_recorder": (
         ("scenario", "", "scenario YAML file (topic list)"),
