@@ -220,7 +220,106 @@ def _kernel(fn, engine: str):
     return fn if engine == "numba" else getattr(fn, "py_func", fn)
 
 
-class MultirateNavigator:
+class _CycleNavigator:
+    """What both stateful navigators share (a subclass computes the cycles, ``_cycles``).
+
+    The checks of ``N``, ``T_gyr`` and the gravitation model, increments kept until they complete
+    a ``T_nav`` cycle, the output times and the state carried from cycle to cycle.
+    """
+
+    n: int
+    t_gyr: float
+    damping: VerticalDamping | None
+
+    def _init_cycles(
+        self, initial: NavState, n: int, t_gyr: float, gravity_model: str,
+        damping: VerticalDamping | None,
+    ) -> None:  # fmt: skip
+        if n < 1:
+            raise ValueError(f"N must be >= 1, got N={n}")
+        if not (t_gyr > 0.0 and math.isfinite(t_gyr)):
+            raise ValueError(f"T_gyr must be a positive number of seconds, got {t_gyr!r}")
+        if gravity_model not in GRAVITY_MODELS:
+            raise ValueError(f"unknown gravity model {gravity_model!r}")
+        self.n, self.t_gyr, self.gravity_model = int(n), float(t_gyr), gravity_model
+        self.damping = damping
+        self._pending_da = np.empty((0, 3))
+        self._pending_dv = np.empty((0, 3))
+        self._t_start, self._done = float(initial.t), 0
+
+    @property
+    def t_nav(self) -> float:
+        """Navigation period ``T_nav = N T_gyr``, s."""
+        return self.n * self.t_gyr
+
+    @property
+    def state(self) -> NavState:
+        """The state at the end of the last completed ``T_nav`` cycle."""
+        return self._state
+
+    @property
+    def pending(self) -> int:
+        """Increments received but not yet used (fewer than N)."""
+        return int(self._pending_da.shape[0])
+
+    def run(self, dalpha: ArrayLike, dv: ArrayLike, h_aux: ArrayLike | None = None) -> NavSolution:
+        """Process increments; return the outputs of the ``T_nav`` cycles they complete.
+
+        Parameters
+        ----------
+        dalpha, dv : array_like (M, 3)
+            Next increments ``Δφ_b`` (rad), ``Δβ_b`` (m/s), body FRD, at ``T_gyr``. Increments
+            that do not complete a cycle are kept for the next call.
+        h_aux : array_like (K,), optional
+            Auxiliary altitude (m) at the start of each completed cycle (``damping`` only);
+            K = ``(pending + M) // N``.
+
+        Returns
+        -------
+        NavSolution
+            The K new outputs (at the ends of the completed cycles; may be empty).
+        """
+        da, dvv, cycles, haux = _take_cycles(self, dalpha, dv, h_aux)
+        out = self._cycles(da, dvv, cycles, haux)
+        self._done += cycles
+        if cycles:
+            self._state = NavState(
+                float(out.t[-1]), float(out.lat[-1]), float(out.lon[-1]), float(out.alt[-1]),
+                out.v_ned[-1].copy(), out.q_b_n[-1].copy(),
+            )  # fmt: skip
+        return out
+
+    def _cycles(self, da: F64, dvv: F64, cycles: int, haux: F64) -> NavSolution:
+        raise NotImplementedError
+
+    def _times(self, cycles: int) -> F64:
+        """Output times ``t_start + j T_nav`` from the integer cycle count (no drift)."""
+        return self._t_start + self.t_nav * (self._done + np.arange(1, cycles + 1))
+
+
+def _paper_start(st: NavState) -> tuple[float, float, float, F64, F64]:
+    """``λ, Λ, h`` (floats) and copies of ``U_l``, ``q_b^l``: a paper-mode loop's variables."""
+    u = np.asarray(st.v_ned, dtype=np.float64).copy()
+    q = np.asarray(st.q_b_n, dtype=np.float64).copy()
+    return float(st.lat), float(st.lon), float(st.alt), u, q
+
+
+def _outputs(cycles: int) -> tuple[F64, F64, F64]:
+    """Empty ``λ, Λ, h`` (cycles, 3), ``U_l`` (cycles, 3) and ``q_b^l`` (cycles, 4) rows."""
+    return np.empty((cycles, 3)), np.empty((cycles, 3)), np.empty((cycles, 4))
+
+
+def _cycle_terms(
+    nav: _CycleNavigator, lat: float, alt: float, u: F64, h_aux: float
+) -> tuple[float, float, F64, F64, F64, float]:
+    """At a paper-mode cycle's start: :func:`_rates`, ``g_l`` (NED), ``h - h_aux`` (0 undamped)."""
+    lat_dot, lon_dot, w_il, w_cor = _rates(lat, alt, u, nav.table1_radii)
+    g_l = gravity_ned(lat, alt, nav.gravity_model)
+    sv = alt - h_aux if nav.damping is not None else 0.0
+    return lat_dot, lon_dot, w_il, w_cor, g_l, sv
+
+
+class MultirateNavigator(_CycleNavigator):
     """Stateful multirate b–l split navigator: feed increments, get ``T_nav`` outputs.
 
     The offline function :func:`navigate_multirate` and the ROS ``navigator_node`` both run
@@ -292,40 +391,15 @@ class MultirateNavigator:
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"unknown mode {mode!r}; available: {', '.join(map(repr, MODES))}")
-        if n < 1:
-            raise ValueError(f"N must be >= 1, got N={n}")
         if p < 1:
             raise ValueError(f"P must be >= 1, got P={p}")
-        if not (t_gyr > 0.0 and math.isfinite(t_gyr)):
-            raise ValueError(f"T_gyr must be a positive number of seconds, got {t_gyr!r}")
-        if gravity_model not in GRAVITY_MODELS:
-            raise ValueError(f"unknown gravity model {gravity_model!r}")
         if damping is not None and mode != "paper":
             raise ValueError("vertical damping is a 'paper' mode option")
-        self.mode, self.n, self.p, self.t_gyr = mode, int(n), int(p), float(t_gyr)
-        self.gravity_model = gravity_model
+        self._init_cycles(initial, n, t_gyr, gravity_model, damping)
+        self.mode, self.p = mode, int(p)
         self.normalize, self.table1_radii = normalize, table1_radii
-        self.damping = damping
         self.engine = _engine(engine)
-        self._pending_da = np.empty((0, 3))
-        self._pending_dv = np.empty((0, 3))
-        self._t_start, self._done = float(initial.t), 0
         self._set_state(initial)
-
-    @property
-    def t_nav(self) -> float:
-        """Navigation period ``T_nav = N T_gyr``, s."""
-        return self.n * self.t_gyr
-
-    @property
-    def state(self) -> NavState:
-        """The state at the end of the last completed ``T_nav`` cycle."""
-        return self._state
-
-    @property
-    def pending(self) -> int:
-        """Increments received but not yet used (fewer than N)."""
-        return int(self._pending_da.shape[0])
 
     def _set_state(self, st: NavState) -> None:
         self._state = NavState(
@@ -341,41 +415,12 @@ class MultirateNavigator:
             self._c0 = c_n_e @ dcm_from_quat(self._state.q_b_n)
             self._lo = np.zeros(6)
 
-    def run(self, dalpha: ArrayLike, dv: ArrayLike, h_aux: ArrayLike | None = None) -> NavSolution:
-        """Process increments; return the outputs of the ``T_nav`` cycles they complete.
-
-        Parameters
-        ----------
-        dalpha, dv : array_like (M, 3)
-            Next increments ``Δφ_b`` (rad), ``Δβ_b`` (m/s), body FRD, at ``T_gyr``. Increments
-            that do not complete a cycle are kept for the next call.
-        h_aux : array_like (K,), optional
-            Auxiliary altitude (m) at the start of each completed cycle (``damping`` only);
-            K = ``(pending + M) // N``.
-
-        Returns
-        -------
-        NavSolution
-            The K new outputs (at the ends of the completed cycles; may be empty).
-        """
-        da, dvv, cycles, haux = _take_cycles(self, dalpha, dv, h_aux)
+    def _cycles(self, da: F64, dvv: F64, cycles: int, haux: F64) -> NavSolution:
         if self.mode == "exact":
-            out = self._run_exact(da, dvv, cycles)
-        elif self.engine == "numba":
-            out = self._run_paper_kernel(da, dvv, cycles, haux)
-        else:
-            out = self._run_paper_python(da, dvv, cycles, haux)
-        self._done += cycles
-        if cycles:
-            self._state = NavState(
-                float(out.t[-1]), float(out.lat[-1]), float(out.lon[-1]), float(out.alt[-1]),
-                out.v_ned[-1].copy(), out.q_b_n[-1].copy(),
-            )  # fmt: skip
-        return out
-
-    def _times(self, cycles: int) -> F64:
-        """Output times ``t_start + j T_nav`` from the integer cycle count (no drift)."""
-        return self._t_start + self.t_nav * (self._done + np.arange(1, cycles + 1))
+            return self._run_exact(da, dvv, cycles)
+        if self.engine == "numba":
+            return self._run_paper_kernel(da, dvv, cycles, haux)
+        return self._run_paper_python(da, dvv, cycles, haux)
 
     def _run_paper_kernel(self, da: F64, dvv: F64, cycles: int, haux: F64) -> NavSolution:
         st = self._state
@@ -397,15 +442,10 @@ class MultirateNavigator:
         t_nav = self.t_nav
         t_int = t_nav / p
         c1, c2 = self.damping.coefficients if self.damping is not None else (0.0, 0.0)
-        lat, lon, alt = st.lat, st.lon, st.alt
-        u, q = st.v_ned.copy(), st.q_b_n.copy()
-        pos = np.empty((cycles, 3))
-        vel = np.empty((cycles, 3))
-        quat = np.empty((cycles, 4))
+        lat, lon, alt, u, q = _paper_start(st)
+        pos, vel, quat = _outputs(cycles)
         for j in range(cycles):
-            lat_dot, lon_dot, w_il, w_cor = _rates(lat, alt, u, self.table1_radii)
-            g_l = gravity_ned(lat, alt, self.gravity_model)
-            sv = alt - haux[j] if self.damping is not None else 0.0
+            lat_dot, lon_dot, w_il, w_cor, g_l, sv = _cycle_terms(self, lat, alt, u, haux[j])
             if self.damping is not None:
                 g_l = g_l + np.array([0.0, 0.0, c2 * sv])  # s'' (29)
 
@@ -504,7 +544,7 @@ def navigate_multirate(
     return _with_initial(nav.state, nav.run(dalpha, dv, h_aux))
 
 
-class SimultaneousNavigator:
+class SimultaneousNavigator(_CycleNavigator):
     """Waldmann's simultaneous l-frame scheme (Table 2), stateful like :class:`MultirateNavigator`.
 
     The quaternion (33) is updated at ``T_gyr`` as in the multirate ``paper`` mode; velocity
@@ -534,43 +574,17 @@ class SimultaneousNavigator:
         table1_radii: bool = False,
         damping: VerticalDamping | None = None,
     ) -> None:
-        if n < 1:
-            raise ValueError(f"N must be >= 1, got N={n}")
-        if not (t_gyr > 0.0 and math.isfinite(t_gyr)):
-            raise ValueError(f"T_gyr must be a positive number of seconds, got {t_gyr!r}")
-        if gravity_model not in GRAVITY_MODELS:
-            raise ValueError(f"unknown gravity model {gravity_model!r}")
-        self.n, self.t_gyr, self.gravity_model = int(n), float(t_gyr), gravity_model
-        self.normalize, self.table1_radii, self.damping = normalize, table1_radii, damping
+        self._init_cycles(initial, n, t_gyr, gravity_model, damping)
+        self.normalize, self.table1_radii = normalize, table1_radii
         self._state = initial
-        self._pending_da = np.empty((0, 3))
-        self._pending_dv = np.empty((0, 3))
-        self._t_start, self._done = float(initial.t), 0
 
-    t_nav = MultirateNavigator.t_nav
-    _times = MultirateNavigator._times
-    state = MultirateNavigator.state
-    pending = MultirateNavigator.pending
-
-    def run(self, dalpha: ArrayLike, dv: ArrayLike, h_aux: ArrayLike | None = None) -> NavSolution:
-        """Process increments; return the outputs of the completed cycles.
-
-        Same contract as :meth:`MultirateNavigator.run`.
-        """
-        da, dvv, cycles, haux = _take_cycles(self, dalpha, dv, h_aux)
+    def _cycles(self, da: F64, dvv: F64, cycles: int, haux: F64) -> NavSolution:
         n, t_nav = self.n, self.t_nav
         c1, c2 = self.damping.coefficients if self.damping is not None else (0.0, 0.0)
-        st = self._state
-        lat, lon, alt = float(st.lat), float(st.lon), float(st.alt)
-        u = np.asarray(st.v_ned, dtype=np.float64).copy()
-        q = np.asarray(st.q_b_n, dtype=np.float64).copy()
-        pos = np.empty((cycles, 3))
-        vel = np.empty((cycles, 3))
-        quat = np.empty((cycles, 4))
+        lat, lon, alt, u, q = _paper_start(self._state)
+        pos, vel, quat = _outputs(cycles)
         for j in range(cycles):
-            lat_dot, lon_dot, w_il, w_cor = _rates(lat, alt, u, self.table1_radii)
-            g_l = gravity_ned(lat, alt, self.gravity_model)
-            sv = alt - haux[j] if self.damping is not None else 0.0
+            lat_dot, lon_dot, w_il, w_cor, g_l, sv = _cycle_terms(self, lat, alt, u, haux[j])
             f_l = dcm_from_quat(q) @ (dvv[j * n] / self.t_gyr)  # (15) with the sampled f_b(k)
             sl_ = slice(j * n, (j + 1) * n)
             q, _ = fast_cycle(q, da[sl_], dvv[sl_], self.t_gyr * w_il, self.normalize)  # (33)
@@ -578,18 +592,11 @@ class SimultaneousNavigator:
             alt = alt + t_nav * (-u[2] + c1 * sv)
             u = u + t_nav * (-np.cross(w_cor, u) + f_l + g_l + np.array([0.0, 0.0, c2 * sv]))
             pos[j], vel[j], quat[j] = (lat, lon, alt), u, q
-        t = self._times(cycles)
-        self._done += cycles
-        out = NavSolution(t, pos[:, 0], pos[:, 1], pos[:, 2], vel, quat, n)
-        if cycles:
-            self._state = NavState(
-                float(t[-1]), float(lat), float(lon), float(alt), u.copy(), q.copy()
-            )
-        return out
+        return NavSolution(self._times(cycles), pos[:, 0], pos[:, 1], pos[:, 2], vel, quat, n)
 
 
 def _take_cycles(
-    nav: MultirateNavigator | SimultaneousNavigator,
+    nav: _CycleNavigator,
     dalpha: ArrayLike,
     dv: ArrayLike,
     h_aux: ArrayLike | None,
