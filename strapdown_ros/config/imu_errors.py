@@ -49,33 +49,32 @@ _DPSH = _DEG / 60.0  # deg/√h -> rad/√s
 _MG = G0 * 1e-3  # mg -> m/s²
 _SQRT_H = 60.0  # √(3600 s)
 
-#: Sensor key -> (triad, :class:`~strapdown_ros.core.imu_errors.SensorErrors` field, SI factor).
+#: :class:`~strapdown_ros.core.imu_errors.SensorErrors` field -> the gyro's key and SI factor,
+#: the accelerometer's key and SI factor (None: the gyro's only); keys without their triad prefix.
+_TRIAD_KEYS: tuple[tuple[str, str, float, str | None, float], ...] = (
+    ("bias", "bias_dph", _DPH, "bias_mg", _MG),
+    ("turn_on_bias_sigma", "turn_on_bias_sigma_dph", _DPH, "turn_on_bias_sigma_mg", _MG),
+    ("bias_instability", "bias_instability_dph", _DPH, "bias_instability_mg", _MG),
+    ("correlation_time_s", "correlation_time_s", 1.0, "correlation_time_s", 1.0),
+    ("white", "arw_dpsh", _DPSH, "vrw_mpsph", 1.0 / _SQRT_H),
+    ("random_walk", "rrw_dphpsh", _DPH / _SQRT_H, "rrw_mgpsh", _MG / _SQRT_H),
+    ("scale_factor", "scale_factor_ppm", 1e-6, "scale_factor_ppm", 1e-6),
+    ("scale_factor_sigma", "scale_factor_sigma_ppm", 1e-6, "scale_factor_sigma_ppm", 1e-6),
+    ("misalignment", "misalignment_mrad", 1e-3, "misalignment_mrad", 1e-3),
+    ("misalignment_sigma", "misalignment_sigma_mrad", 1e-3, "misalignment_sigma_mrad", 1e-3),
+    ("quantum", "quantum_rad", 1.0, "quantum_mps", 1.0),
+    ("range", "range_dps", _DEG, "range_g", G0),
+    ("g_sensitivity", "g_sensitivity_dphpg", _DPH / G0, None, 0.0),
+)
+#: Sensor key -> (triad, :class:`~strapdown_ros.core.imu_errors.SensorErrors` field, SI factor):
+#: every gyro key, then every accelerometer key, in the order of ``_TRIAD_KEYS``.
 SENSOR_KEYS: dict[str, tuple[str, str, float]] = {
-    "gyro_bias_dph": ("gyro", "bias", _DPH),
-    "gyro_turn_on_bias_sigma_dph": ("gyro", "turn_on_bias_sigma", _DPH),
-    "gyro_bias_instability_dph": ("gyro", "bias_instability", _DPH),
-    "gyro_correlation_time_s": ("gyro", "correlation_time_s", 1.0),
-    "gyro_arw_dpsh": ("gyro", "white", _DPSH),
-    "gyro_rrw_dphpsh": ("gyro", "random_walk", _DPH / _SQRT_H),
-    "gyro_scale_factor_ppm": ("gyro", "scale_factor", 1e-6),
-    "gyro_scale_factor_sigma_ppm": ("gyro", "scale_factor_sigma", 1e-6),
-    "gyro_misalignment_mrad": ("gyro", "misalignment", 1e-3),
-    "gyro_misalignment_sigma_mrad": ("gyro", "misalignment_sigma", 1e-3),
-    "gyro_quantum_rad": ("gyro", "quantum", 1.0),
-    "gyro_range_dps": ("gyro", "range", _DEG),
-    "gyro_g_sensitivity_dphpg": ("gyro", "g_sensitivity", _DPH / G0),
-    "accel_bias_mg": ("accel", "bias", _MG),
-    "accel_turn_on_bias_sigma_mg": ("accel", "turn_on_bias_sigma", _MG),
-    "accel_bias_instability_mg": ("accel", "bias_instability", _MG),
-    "accel_correlation_time_s": ("accel", "correlation_time_s", 1.0),
-    "accel_vrw_mpsph": ("accel", "white", 1.0 / _SQRT_H),
-    "accel_rrw_mgpsh": ("accel", "random_walk", _MG / _SQRT_H),
-    "accel_scale_factor_ppm": ("accel", "scale_factor", 1e-6),
-    "accel_scale_factor_sigma_ppm": ("accel", "scale_factor_sigma", 1e-6),
-    "accel_misalignment_mrad": ("accel", "misalignment", 1e-3),
-    "accel_misalignment_sigma_mrad": ("accel", "misalignment_sigma", 1e-3),
-    "accel_quantum_mps": ("accel", "quantum", 1.0),
-    "accel_range_g": ("accel", "range", G0),
+    **{f"gyro_{key}": ("gyro", name, factor) for name, key, factor, _, _ in _TRIAD_KEYS},
+    **{
+        f"accel_{key}": ("accel", name, factor)
+        for name, _, _, key, factor in _TRIAD_KEYS
+        if key is not None
+    },
 }
 #: Every key accepted in an ``imu_errors`` section.
 IMU_ERROR_KEYS: tuple[str, ...] = ("preset", "seed", "input_topic", "output_topic", *SENSOR_KEYS)
