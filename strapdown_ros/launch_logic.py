@@ -28,6 +28,7 @@ The launch file calls :func:`plan_launch_with` (this module's stdlib part only),
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import shlex
@@ -268,24 +269,28 @@ def node_interpreter(prefix: str | os.PathLike[str]) -> str:
     return words[0]
 
 
+def _plan_options() -> set[str]:
+    """The keyword arguments of :func:`plan_launch`."""
+    params = inspect.signature(plan_launch).parameters.values()
+    return {p.name for p in params if p.kind is inspect.Parameter.KEYWORD_ONLY}
+
+
 def plan_launch_with(
-    python: str,
-    scenario_path: str,
-    out: str = "",
-    *,
-    force: str | bool = False,
-    duration_s: str | float = 0.0,
-    rate_factor: str | float = 1.0,
-    cwd: str | os.PathLike[str] | None = None,
+    python: str, scenario_path: str, out: str = "", **options: Any
 ) -> LaunchPlan:
     """:func:`plan_launch` computed by ``python`` (:func:`node_interpreter`) in a child process.
 
-    Raises :class:`LaunchError` with the child's message when it refuses (a bad argument or
-    scenario, an existing ``out``, an unsupported library with its fix) or fails.
+    ``options``: :func:`plan_launch`'s keyword arguments (``cwd`` defaults to this process's
+    current directory), passed to the child as JSON. Raises :class:`LaunchError` with the
+    child's message when it refuses (a bad argument or scenario, an existing ``out``, an
+    unsupported library with its fix) or fails.
     """
-    args = [python, "-m", __name__, str(scenario_path), "--out", str(out), "--force",
-            str(force).lower(), "--duration-s", str(duration_s), "--rate-factor",
-            str(rate_factor), "--cwd", str(cwd if cwd is not None else os.getcwd())]  # fmt: skip
+    unknown = sorted(set(options) - _plan_options())
+    if unknown:
+        raise TypeError(f"plan_launch_with() got unexpected keyword arguments {unknown}")
+    options.setdefault("cwd", os.getcwd())
+    args = [python, "-m", __name__, str(scenario_path), "--out", str(out),
+            "--options", json.dumps(options, default=str)]  # fmt: skip
     try:
         proc = subprocess.run(args, capture_output=True, text=True, timeout=PLAN_TIMEOUT_S,
                               stdin=subprocess.DEVNULL)  # fmt: skip
@@ -303,10 +308,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=f"python -m {__name__}")
     parser.add_argument("scenario")
     parser.add_argument("--out", default="")
-    parser.add_argument("--force", default="false")
-    parser.add_argument("--duration-s", default="0.0")
-    parser.add_argument("--rate-factor", default="1.0")
-    parser.add_argument("--cwd", default=None)
+    parser.add_argument("--options", default="{}", help="plan_launch's keyword arguments (JSON)")
     ns = parser.parse_args(argv)
     from strapdown_ros.requirements_check import exit_if_unsupported
 
@@ -314,8 +316,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from strapdown_ros.config import ScenarioError
 
     try:
-        plan = plan_launch(ns.scenario, ns.out, force=ns.force, duration_s=ns.duration_s,
-                           rate_factor=ns.rate_factor, cwd=ns.cwd)  # fmt: skip
+        plan = plan_launch(ns.scenario, ns.out, **json.loads(ns.options))
     except (LaunchError, ScenarioError) as exc:
         print(exc, file=sys.stderr)
         return 2
