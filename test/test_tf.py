@@ -1,7 +1,9 @@
 """TF and map-frame odometry of a generated bag (docs/interface.md, "Frames and TF").
 
-The default scenario (10 min flight, 200 Hz, full length) is generated once; the bag is read
-back (TF with rosbags' own deserializer, independent of our codec) and:
+The default scenario is generated once per length: its first 30 s (straight, pitch-up, the
+start of the climb, the variation IMU bending and scanning) in the fast tier, the whole 10 min
+flight (every maneuver) as a ``slow`` test; the bag is read back (TF with rosbags' own
+deserializer, independent of our codec) and:
 
 * ``earth → map → base_link → reference_imu`` composed from ``/tf_static`` and ``/tf`` equals
   the ECEF reference truth (``/reference/odom``) at every truth sample, to 1e-6 m and 1e-9 rad;
@@ -90,10 +92,13 @@ class Poses:
         return self.p[i], self.c[i]
 
 
-@pytest.fixture(scope="module")
-def bag(tmp_path_factory: pytest.TempPathFactory) -> dict:
+@pytest.fixture(
+    scope="module",
+    params=[pytest.param(30.0, id="30s"), pytest.param(None, id="full", marks=pytest.mark.slow)],
+)
+def bag(tmp_path_factory: pytest.TempPathFactory, request: pytest.FixtureRequest) -> dict:
     out = tmp_path_factory.mktemp("tf") / "default"
-    scenario = load_scenario(DEFAULT)
+    scenario = load_scenario(DEFAULT, duration_s=request.param)
     generate_dataset(scenario, out)
     tf: dict[tuple[str, str], list] = defaultdict(lambda: [[], [], []])
     static: dict[tuple[str, str], tuple] = {}
@@ -162,7 +167,8 @@ def test_earth_map_base_link_is_the_reference_truth(bag: dict) -> None:
     assert frames == {("earth", "reference_imu")}
     p_map, c_map = _static(bag, "earth", "map")
     tf = bag["tf"][("map", "base_link")]
-    assert tf.t.size == truth.t.size == 120_001  # every truth sample, 10 min at 200 Hz
+    sc = bag["scenario"]
+    assert tf.t.size == truth.t.size == round(sc.duration_s * sc.rate_hz) + 1  # every sample
     p_bl, c_bl = tf.at(truth.t)
     p_imu, c_imu = _static(bag, "base_link", "reference_imu")
     pos = p_map + (c_map @ (p_bl + (c_bl @ p_imu))[..., None])[..., 0]
