@@ -325,7 +325,11 @@ def _mcap_view(f: Path):
     return summary, msgs, metadata
 
 
-@pytest.mark.parametrize("with_metadata", [False, True], ids=["killed", "metadata-kept"])
+@pytest.mark.parametrize(
+    "with_metadata",
+    [False, pytest.param(True, marks=pytest.mark.slow)],  # ~7 s: every cut again, metadata kept
+    ids=["killed", "metadata-kept"],
+)
 def test_mcap_cut_at_chosen_bytes(recorded, with_metadata, tmp_path):
     """Every message complete before the cut is back with identical payload bytes, in order,
     in a valid MCAP file (summary, statistics, indexes, CRCs) with the original schemas and

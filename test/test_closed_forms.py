@@ -99,9 +99,13 @@ def linear_model(t, accel, gyro):
     return sol.y.T
 
 
+SLOW = pytest.mark.slow
+
+
 @pytest.mark.parametrize(
     "accel, gyro",
-    [((MG, 0, 0), (0, 0, 0)), ((0, 0, 0), (0, 0, 0.1 * DPH)),
+    [pytest.param((MG, 0, 0), (0, 0, 0), marks=SLOW),  # ~4.5 s each; the third has both
+     pytest.param((0, 0, 0), (0, 0, 0.1 * DPH), marks=SLOW),
      ((0, -MG, 0), (0.03 * DPH, -0.05 * DPH, 0.02 * DPH))],
 )  # fmt: skip
 def test_closed_form_solves_the_linear_equations(accel, gyro):

@@ -120,6 +120,7 @@ def test_every_kind_obeys_the_exactness_rule_read_back_from_disk(tmp_path, kind)
     assert check.returncode == 0 and ": ok" in check.stdout, check.stdout + check.stderr
 
 
+@pytest.mark.slow  # ~4.5 s: two generate runs and a CSV fit
 def test_samples_kind_round_trip_through_csv(tmp_path):
     """segments → truth CSV at 10 Hz → samples kind → regenerated truth within spline error."""
     seg = parse_scenario(SCENARIOS["segments"])

@@ -251,6 +251,7 @@ def test_node_interpreter_reads_the_executables_interpreter_line(tmp_path) -> No
         launch_logic.node_interpreter(tmp_path / "not_built")
 
 
+@pytest.mark.slow  # ~5 s: two planner child processes
 def test_plan_in_the_nodes_interpreter_is_the_plan(tmp_path) -> None:
     """plan_launch_with (a child process, JSON) gives exactly plan_launch's plan, and relays
     its refusals as LaunchError with the same message (about 1.5 s of CPU per child)."""
@@ -344,6 +345,7 @@ def _context(tmp_path: Path, scenario: str = "car.yaml") -> dict[str, str]:
             "duration_s": str(DURATION), "rate_factor": "1.0", "_prefix": str(prefix)}  # fmt: skip
 
 
+@pytest.mark.slow  # ~3 s: child processes
 def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
     for name, module in _fake_launch_modules().items():
         monkeypatch.setitem(sys.modules, name, module)
@@ -369,6 +371,7 @@ def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
         assert callback(types.SimpleNamespace(returncode=-2), stopping) == []
 
 
+@pytest.mark.slow  # ~3 s: child processes
 def test_launch_file_needs_no_library_in_the_launch_process(tmp_path) -> None:
     """The launch file run by a Python that can import none of the package's libraries (as
     /usr/bin/python3 running ros2 launch on noble lacks pydantic 2 and numba): the nodes and

@@ -255,6 +255,7 @@ def test_generate_records_the_method_for_the_labels(bags: dict[str, Path]) -> No
     assert custom["navigator.mode"] == "exact" and custom["imu_errors.preset"] == "tactical"
 
 
+@pytest.mark.slow  # ~4 s: a second full report
 def test_rerun_replaces_old_plots(bags: dict[str, Path]) -> None:
     """Plots of an earlier report that no longer apply are removed, other files kept."""
     out = bags["dir"] / "rerun"

@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import tiers
 
 TEST_DIR = Path(__file__).resolve().parent
@@ -79,6 +80,7 @@ def _nested(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
     )  # fmt: skip
 
 
+@pytest.mark.slow  # ~6 s: a nested pytest session
 def test_ros_free_tier_fails_tests_that_import_rclpy(tmp_path: Path) -> None:
     proc = _nested(tmp_path, "-m", "not dds")
     out = proc.stdout + proc.stderr
