@@ -66,7 +66,7 @@ class AidedNode(BatchedInputNode):
         types = aided_topic_types(scenario)
         for topic in self.stream.topics.values():
             self.add_output(topic, types[topic])
-        self._subscriptions: list[Any] = []
+        self._input_subs: list[Any] = []
         self._started = False
         log.info(
             f"scenario {scenario.path} ({scenario.name}): aided INS on "
@@ -78,7 +78,7 @@ class AidedNode(BatchedInputNode):
 
     def _subscribe(self) -> str:
         for topic, msgtype in self.input_types.items():
-            self._subscriptions.append(self.subscribe_input(topic, msgtype, topic, "scenario"))
+            self._input_subs.append(self.subscribe_input(topic, msgtype, topic, "scenario"))
         return ", ".join(self.input_types)
 
     def _process(self, items: list[Any]) -> None:
