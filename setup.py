@@ -32,6 +32,7 @@ NODE_EXECUTABLES = (
     "navigator_node",
     "imu_model_node",
     "aiding_node",
+    "aided_node",
     "bag_recorder",
     "bag_player",
 )

@@ -5,15 +5,15 @@
         [rate_factor:=1.0]
 
 Starts the nodes the scenario needs (``bag_recorder``, ``trajectory_node`` and those of
-``navigator_node``, ``aiding_node``, ``imu_model_node``, ``variation_node`` the scenario has
-sections for) with ``config/params.yaml`` (installed under ``share/strapdown_ros/config``) and,
-over it, what :mod:`strapdown_ros.launch_logic` derives from the scenario at launch time: each
-node's ``subscribers_per_topic`` (the start-up handshake, so the start order does not matter and
-no message is lost, for any scenario), the output directory (default: a new
-``strapdown_run_YYYY_MM_DD-HH_MM_SS`` in the current directory; an existing ``out:=`` is refused
-before anything starts unless ``force:=true``), flow control above real time. When any node
-exits with an error the whole launch shuts down at once, with the reason, and ``ros2 launch``
-exits with status 1.
+``navigator_node``, ``aiding_node``, ``aided_node``, ``imu_model_node``, ``variation_node`` the
+scenario has sections for) with ``config/params.yaml`` (installed under
+``share/strapdown_ros/config``) and, over it, what :mod:`strapdown_ros.launch_logic` derives
+from the scenario at launch time: each node's ``subscribers_per_topic`` (the start-up handshake,
+so the start order does not matter and no message is lost, for any scenario), the output
+directory (default: a new ``strapdown_run_YYYY_MM_DD-HH_MM_SS`` in the current directory; an
+existing ``out:=`` is refused before anything starts unless ``force:=true``), flow control above
+real time. When any node exits with an error the whole launch shuts down at once, with the
+reason, and ``ros2 launch`` exits with status 1.
 
 This is the pipeline of ``strapdown-sim run``. ``launch`` / ``launch_ros`` are imported inside
 the functions so that this file imports (and is linted and tested) without them. The process
@@ -28,6 +28,7 @@ NODES = (
     "imu_model_node",
     "navigator_node",
     "aiding_node",
+    "aided_node",
     "bag_recorder",
 )
 

@@ -187,7 +187,7 @@ def plan_launch(
     ``rate_factor`` > 1 or <= 0 (unpaced) turns on flow control as ``strapdown-sim run`` does
     (the trajectory node never runs more than a window ahead of any consumer: lossless).
     Raises :class:`LaunchError` for a bad argument, an existing ``out`` without ``force`` or a
-    scenario section no node runs live (``aided``, ``timing``), and the scenario's
+    scenario section no node runs live (``timing``), and the scenario's
     :class:`~strapdown_ros.config.ScenarioError`.
     """
     from strapdown_ros.config import load_scenario

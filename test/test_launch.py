@@ -249,9 +249,15 @@ def test_nodes_with_params_file_in_worst_start_order(tmp_path, ros_env) -> None:
     gen, live = tmp_path / "generate", tmp_path / "live"
     duration = "3.0"
     _generate(gen, duration)
+    from strapdown_ros.config import load_scenario
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.plan.chain import live_graph
+
+    # the nodes default.yaml needs (aided_node, in params.yaml too, needs an aided section)
+    needed = {n.executable for n in live_graph(resolve_plan(load_scenario(SCENARIO)))[0]}
     procs = []
     try:
-        for node in NODES:
+        for node in (n for n in NODES if n in needed or n == "bag_recorder"):
             args = [executable(node), "--ros-args", "--params-file", str(PARAMS)]
             args += ["-p", f"scenario:={SCENARIO}"]
             args += ["-p", f"output:={live}"] if node == "bag_recorder" else []

@@ -104,15 +104,17 @@ def _as_list(text: str) -> list[str]:
     return [s.strip().strip("'") for s in text.strip("[]").split(",") if s.strip()]
 
 
-@pytest.mark.parametrize("name", ["default.yaml", "car.yaml"])
+@pytest.mark.parametrize("name", ["default.yaml", "car.yaml", "aided_car_noisy.yaml"])
 @pytest.mark.parametrize("rate_factor", [1.0, 5.0])
 def test_counts_and_nodes_equal_strapdown_sim_run(name, rate_factor, tmp_path) -> None:
-    run = _run_children(SCENARIOS / name, tmp_path, rate_factor)
+    """Shipped scenarios, and a test scenario with an aided section (aided_node)."""
+    path = SCENARIOS / name if (SCENARIOS / name).exists() else REPO / "test" / "data" / name
+    run = _run_children(path, tmp_path, rate_factor)
     plan = launch_logic.plan_launch(
-        str(SCENARIOS / name), str(tmp_path / "launch_out"), duration_s=DURATION,
-        rate_factor=rate_factor,
+        str(path), str(tmp_path / "launch_out"), duration_s=DURATION, rate_factor=rate_factor,
     )  # fmt: skip
     assert {n.name for n in plan.nodes} == set(run)
+    assert ("aided_node" in run) == name.startswith("aided_")
     for node in plan.nodes:
         if node.name == "bag_recorder":
             continue

@@ -35,6 +35,7 @@ CONSOLE_SCRIPTS = {
     "navigator_node": "strapdown_ros.nodes.usage:navigator_node",
     "imu_model_node": "strapdown_ros.nodes.usage:imu_model_node",
     "aiding_node": "strapdown_ros.nodes.usage:aiding_node",
+    "aided_node": "strapdown_ros.nodes.usage:aided_node",
     "bag_recorder": "strapdown_ros.nodes.usage:bag_recorder",
     "bag_player": "strapdown_ros.nodes.usage:bag_player",
 }

@@ -64,6 +64,7 @@ NODES = {
     "imu_model_node": ("imu_model_node", "ImuModelNode", 0),
     "navigator_node": ("navigator_node", "NavigatorNode", 0),
     "aiding_node": ("aiding_node", "AidingNode", 0),
+    "aided_node": ("aided_node", "AidedNode", 0),
     "bag_recorder": ("bag_recorder", "BagRecorder", 0),
 }
 
@@ -73,9 +74,12 @@ def test_node_start_up_builds(node, ros_env, tmp_path):
     """A node's start-up (parameters, plan, stage, publishers) builds the trajectory only if it
     samples it: ``trajectory_node`` once, the others never (on the samples scenario, where a
     build fits splines; ``default.yaml`` for the aiding and IMU-error nodes, which need
-    their sections)."""
+    their sections; test/data/aided_default_noisy.yaml for the aided node)."""
     module, cls, want = NODES[node]
     name = "default" if node in ("aiding_node", "imu_model_node") else "waldmann_moving"
+    path = SCENARIOS / f"{name}.yaml"
+    if node == "aided_node":  # no shipped scenario has an aided section
+        path = SCENARIOS.parents[1] / "test" / "data" / "aided_default_noisy.yaml"
     script = _NODE_SCRIPT.format(module=module, cls=cls)
     env = dict(ros_env)
     if node == "bag_recorder":
@@ -85,7 +89,7 @@ def test_node_start_up_builds(node, ros_env, tmp_path):
             f'"scenario:=" + sys.argv[1], "-p", "output:={tmp_path / "bag"}"]',
         )
     proc = subprocess.run(
-        [sys.executable, "-c", script, str(SCENARIOS / f"{name}.yaml")],
+        [sys.executable, "-c", script, str(path)],
         capture_output=True, text=True, timeout=120, env=env,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr

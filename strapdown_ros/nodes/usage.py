@@ -56,6 +56,11 @@ DESCRIPTIONS: dict[str, str] = {
         "Publishes the scenario's aiding sensors from the reference odometry: GNSS (/gnss/fix,\n"
         "/gnss/vel), barometer (/baro/pressure), magnetometer (/mag), wheel odometer."
     ),
+    "aided_node": (
+        "Runs the reference aided INS (error-state Kalman filter) on the measured IMU and the\n"
+        "aiding sensors and publishes its solution, its errors against the truth and its NEES,\n"
+        "innovations and NIS (/aided/*), byte for byte what `strapdown-sim generate` writes."
+    ),
     "bag_recorder": (
         "Records topics (the scenario's, or `topics`) into a rosbag2 directory (mcap or\n"
         "sqlite3), flushed every flush_period_s; with stop_when_done it finalizes the bag when\n"
@@ -203,6 +208,14 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ),
         *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last truth message or idle_timeout_s"),
+        *_BATCHED_TAIL,
+    ),
+    "aided_node": (
+        ("scenario", "", "scenario YAML file (required)"),
+        ("overrides", [""], "scenario overrides dotted.key=value"),
+        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_BATCHED_QOS,
+        ("exit_when_done", True, "exit after the last IMU cycle or idle_timeout_s"),
         *_BATCHED_TAIL,
     ),
     "bag_recorder": (
@@ -376,6 +389,11 @@ def imu_model_node() -> int:
 def aiding_node() -> int:
     """Console script ``aiding_node``."""
     return _run("aiding_node")
+
+
+def aided_node() -> int:
+    """Console script ``aided_node``."""
+    return _run("aided_node")
 
 
 def bag_recorder() -> int:

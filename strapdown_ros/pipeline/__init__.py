@@ -1,14 +1,15 @@
 """``strapdown-sim run``: the live pipeline as separate ROS 2 processes (interface.md §6).
 
-Starts ``bag_recorder``, ``navigator_node``, ``imu_model_node``, ``variation_node`` and
-``trajectory_node`` (those the scenario needs) as child processes in a private ROS domain
-(LOCALHOST discovery), downstream first: each node waits until every one of its output topics
-has as many matched subscriptions as the pipeline will have on it (``subscribers_per_topic``:
-the recorder plus the downstream nodes), and only then subscribes to its inputs, so no message
-is published before everyone who should record or process it is listening. The trajectory node
-then publishes the scenario paced at ``rate_factor`` x real time; every node exits after its last
-message, the recorder (``stop_when_done``) when all its publishers are gone, and the recorded
-message counts are checked against what the scenario produces.
+Starts ``bag_recorder``, ``aided_node``, ``aiding_node``, ``navigator_node``,
+``imu_model_node``, ``variation_node`` and ``trajectory_node`` (those the scenario needs) as
+child processes in a private ROS domain (LOCALHOST discovery), downstream first: each node waits
+until every one of its output topics has as many matched subscriptions as the pipeline will have
+on it (``subscribers_per_topic``: the recorder plus the downstream nodes), and only then
+subscribes to its inputs, so no message is published before everyone who should record or
+process it is listening. The trajectory node then publishes the scenario paced at
+``rate_factor`` x real time; every node exits after its last message, the recorder
+(``stop_when_done``) when all its publishers are gone, and the recorded message counts are
+checked against what the scenario produces.
 
 Runs not tied to the wall clock (``rate_factor`` > 1, or <= 0: unpaced, as fast as the slowest
 node allows) are flow-controlled (:mod:`strapdown_ros.nodes.flow`): the recorder and the nodes

@@ -269,7 +269,7 @@ CHAIN: tuple[Link, ...] = (
          _navigator_outputs, _navigator_stage),  # fmt: skip
     Link("aiding", "aiding_node", lambda s: s.aiding is not None and bool(s.aiding.sensors()),
          _aiding_inputs, _aiding_outputs, _aiding_stage),  # fmt: skip
-    Link("aided", None, _aided_enabled, _aided_inputs, _aided_outputs, _aided_stage),
+    Link("aided", "aided_node", _aided_enabled, _aided_inputs, _aided_outputs, _aided_stage),
     Link("timing", None, lambda s: s.timing is not None and bool(s.timing.sensors()),
          _timing_inputs, _timing_outputs, _timing_stage),  # fmt: skip
     Link("tf", None, _always, _none, _tf_outputs, _tf_stage),

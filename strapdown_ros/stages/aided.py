@@ -381,6 +381,12 @@ class AidedStage:
         self.start_ns = stamp
         self.info(f"aided: filter starts at {format_stamp(stamp)} ({self.model.layout.n} states)")
 
+    @property
+    def done_until(self) -> int | None:
+        """The latest time (ns) processed so far (None: none): every output logged up to it
+        has been returned (the live node is done once it reaches the last IMU stamp)."""
+        return self._done_until
+
     # -- input ----------------------------------------------------------------------------------
 
     def feed_batches(self, batches: Sequence[Batch]) -> list[Batch]:

@@ -3,10 +3,11 @@
 ``declared_parameters(name, bag)`` → ``[(parameter, default, description), ...]`` in declaration
 order: every ``declare_*`` helper of ``strapdown_ros.nodes.parameters`` goes through
 ``parameters._declare``, which is wrapped here to record its arguments while the node class is
-built (with the minimal parameters that let it build: the default scenario for 1 s, a temporary
-output directory, ``bag`` for the player). ``executor`` (declared by ``run_node`` after
-construction) is appended. Needs rclpy; used by test/test_node_usage_params.py and, as a
-script, to print the table of ``strapdown_ros/nodes/usage.py``:
+built (with the minimal parameters that let it build: the default scenario for 1 s, the aided
+node test/data/aided_default_noisy.yaml, a temporary output directory, ``bag`` for the player).
+``executor`` (declared by ``run_node`` after construction) is appended. Needs rclpy; used by
+test/test_node_usage_params.py and, as a script, to print the table of
+``strapdown_ros/nodes/usage.py``:
 
     python test/ros_helpers/node_parameters.py BAG
 """
@@ -20,6 +21,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
+#: Nodes that need a section default.yaml does not have, and the scenario they are built with.
+SCENARIOS = {"aided_node": REPO / "test" / "data" / "aided_default_noisy.yaml"}
 #: Class of each node executable.
 CLASSES = {
     "trajectory_node": "TrajectoryNode",
@@ -27,6 +30,7 @@ CLASSES = {
     "navigator_node": "NavigatorNode",
     "imu_model_node": "ImuModelNode",
     "aiding_node": "AidingNode",
+    "aided_node": "AidedNode",
     "bag_recorder": "BagRecorder",
     "bag_player": "BagPlayer",
 }
@@ -41,7 +45,8 @@ def declared_parameters(name: str, bag: str | Path) -> list[tuple[str, object, s
     cls = getattr(module, CLASSES[name])
     args = ["--ros-args"]
     with tempfile.TemporaryDirectory() as tmp:
-        for p in (f"scenario:={SCENARIO}", "duration_s:=1.0", f"output:={tmp}/out",
+        scenario = SCENARIOS.get(name, SCENARIO)
+        for p in (f"scenario:={scenario}", "duration_s:=1.0", f"output:={tmp}/out",
                   f"bag:={bag}"):  # fmt: skip
             args += ["-p", p]
         recorded: list[tuple[str, object, str]] = []
