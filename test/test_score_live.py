@@ -155,7 +155,13 @@ def test_ctrl_c_stops_everything(suite_bag, tmp_path, ros_env) -> None:
             assert proc.poll() is None, log.read_text()
             assert time.monotonic() < deadline, log.read_text()
             time.sleep(0.1)
-        # Playing (40 s of wall time at rate 0.05): the estimates arrive; then Ctrl-C.
+        # Playing (40 s of wall time at rate 0.05) once the node has its first message: the
+        # estimates arrive; then Ctrl-C.
+        node_log = out / "estimate.logs" / "node.log"
+        while "FIRST" not in node_log.read_text():
+            assert proc.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, node_log.read_text()
+            time.sleep(0.1)
         bag = out / "estimate"
         time.sleep(3.0)
         proc.send_signal(signal.SIGINT)

@@ -42,7 +42,7 @@ from strapdown_ros.pipeline.processes import (
     check_out,
     list_param,
 )
-from strapdown_ros.pipeline.run import say_to_stderr
+from strapdown_ros.pipeline.run import STARTUP_TIMEOUT_S, say_to_stderr
 
 __all__ = [
     "ESTIMATE_TYPES",
@@ -209,7 +209,7 @@ def record_live_estimate(
             list_param("topics", [topic]), "progress_period_s:=0.0",
         )  # fmt: skip
         say(f"bag_recorder started (pid {recorder.proc.pid})")
-        recorder.wait_for("recording 1 topic", startup_timeout_s, children.started)
+        recorder.wait_for("recording 1 topic", STARTUP_TIMEOUT_S, children.started)
         node = UserNode(node_command, children.env, children.log_dir)
         say(f"node started (pid {node.proc.pid}): {node_command}")
         msgtype = _wait_for_publisher(recorder, node, topic, startup_timeout_s)

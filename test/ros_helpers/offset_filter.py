@@ -11,7 +11,7 @@ mode (``--mode``):
 * ``no-publisher``: subscribes only;
 * ``wrong-type``: publishes std_msgs/String on ``--output``.
 
-Prints ``READY`` when its publisher and subscription exist.
+Prints ``READY`` when its publisher and subscription exist, ``FIRST`` at its first message.
 """
 
 from __future__ import annotations
@@ -50,6 +50,8 @@ def main() -> int:
 
     def on_odom(msg: Odometry) -> None:
         seen[0] += 1
+        if seen[0] == 1:
+            print("FIRST", flush=True)
         if args.mode == "exit-early" and seen[0] > args.after:
             raise SystemExit(3)
         if args.mode in ("silent", "no-publisher"):
