@@ -286,6 +286,23 @@ def test_new_types_decode_with_rosbags(ideal_bag):
 # errors on: reproducibility, chunks, gaps, covariances
 
 
+def _difference(topic: str, got: list[bytes], want: list[bytes]) -> str:
+    """Where two payload lists of ``topic`` differ: the counts, or the first differing message
+    with its decoded fields (for an intermittent difference, the evidence of its cause)."""
+    if len(got) != len(want):
+        return f"{topic}: {len(got)} messages vs {len(want)}"
+    rows = [i for i, (a, b) in enumerate(zip(got, want, strict=True)) if a != b]
+    if not rows:
+        return f"{topic}: equal"
+    i = rows[0]
+    a, b = (cdr.deserialize(topic_type(topic), [p[i]]) for p in (got, want))
+    fields = {  # full precision (tolist: Python floats print 17 digits)
+        k: (np.asarray(va).tolist(), np.asarray(vb).tolist()) for k, va in vars(a).items()
+        if not np.array_equal(va, vb := getattr(b, k))
+    }  # fmt: skip
+    return f"{topic}: {len(rows)} of {len(got)} messages differ, first #{i}: {fields}"
+
+
 def test_same_seed_same_bytes_any_chunking(scenario, reference):
     """Whole pieces, uneven chunks and message-by-message (first 2 001 messages) give the same
     bytes; the same seed twice too; another seed changes every noisy value."""
@@ -296,13 +313,15 @@ def test_same_seed_same_bytes_any_chunking(scenario, reference):
     cuts = [0, 1, 2, 3, 5, 8, 13, 200, 1999, 4000, 7777, len(payloads)]
     uneven = _run(scenario, spec, [payloads[a:b] for a, b in zip(cuts, cuts[1:], strict=False)])
     for topic, (pay, log) in whole.items():
-        assert again[topic][0] == pay
-        assert uneven[topic][0] == pay and np.array_equal(uneven[topic][1], log), topic
+        assert again[topic][0] == pay, _difference(topic, again[topic][0], pay)
+        assert uneven[topic][0] == pay, _difference(topic, uneven[topic][0], pay)
+        assert np.array_equal(uneven[topic][1], log), topic
     head = payloads[:2001]
     one = _run(scenario, spec, [[p] for p in head])
     block = _run(scenario, spec, [head])
     for topic, (pay, log) in block.items():
-        assert one[topic][0] == pay and np.array_equal(one[topic][1], log), topic
+        assert one[topic][0] == pay, _difference(topic, one[topic][0], pay)
+        assert np.array_equal(one[topic][1], log), topic
     other = _run(scenario, _spec({**_noisy(), "gnss": {**_noisy()["gnss"], "seed": 99}}),
                  [payloads])  # fmt: skip
     a = cdr.deserialize(cdr.NAVSATFIX, whole["/gnss/fix"][0])
@@ -404,7 +423,7 @@ def test_nonfinite_and_out_of_order_truth_dropped(scenario, reference):
     for topic, (pay, _) in full.items():
         stamps = cdr.deserialize(topic_type(topic), pay).stamps_ns
         want = [p for p, t in zip(pay, stamps, strict=True) if t != t_bad]
-        assert out[topic] == want, topic
+        assert out[topic] == want, _difference(topic, out[topic], want)
 
 
 def test_wheel_at_rest_reports_exactly_zero(tmp_path):

@@ -1,4 +1,8 @@
-"""``strapdown-sim score BAG --topic TOPIC``: the arguments and the command (docs/score.md)."""
+"""``strapdown-sim score BAG --topic TOPIC``: the arguments and the command (docs/score.md).
+
+With ``--node CMD`` (live mode, :mod:`strapdown_ros.score.live`) the ``--input`` topics of BAG
+are first played into the user's node and what it publishes on TOPIC is recorded, then scored.
+"""
 
 from __future__ import annotations
 
@@ -35,6 +39,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    metavar=("ROLL", "PITCH", "YAW"),
                    help="the estimate's axes relative to the reference IMU's, deg")
     p.add_argument("--out", default=None, help="output directory (default: BAG/score)")
+    live = p.add_argument_group(
+        "live (hardware in the loop)",
+        "play BAG into your node, record what it publishes on --topic, then score it",
+    )
+    live.add_argument("--node", default=None, metavar="COMMAND",
+                      help="the command that runs your node (split like a shell command line; "
+                      "it must create its --topic publisher at start-up)")  # fmt: skip
+    live.add_argument("--input", action="append", default=[], metavar="TOPIC", dest="inputs",
+                      help="topic of BAG your node subscribes to: played (repeatable)")
+    live.add_argument("--rate-factor", type=float, default=1.0,
+                      help="play speed over real time (default 1)")  # fmt: skip
+    live.add_argument("--record-to", default=None, metavar="DIR",
+                      help="bag the node's output is recorded into (default: OUT/estimate)")
+    live.add_argument("--force", action="store_true", help="replace an existing --record-to bag")
+    live.add_argument("--domain-id", type=int, default=None,
+                      help="ROS_DOMAIN_ID of the processes (default: a private one from the pid)")
+    live.add_argument("--startup-timeout", type=float, default=60.0, metavar="S",
+                      help="seconds the node may take to publish and subscribe (default 60)")
+    live.add_argument("--linger", type=float, default=2.0, metavar="S",
+                      help="seconds the node keeps running after the play (default 2)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,6 +73,14 @@ def run(args: argparse.Namespace) -> int:
     scenario = None
     if args.scenario is not None:
         scenario = load_scenario(args.scenario, args.overrides, args.duration)
+    out = Path(args.out) if args.out else Path(args.bag) / "score"
+    if args.node is not None:
+        status = _record_live(args, out)
+        if status:
+            return status
+    elif args.inputs:
+        print("strapdown-sim score: --input needs --node (live mode)", file=sys.stderr)
+        return 2
     try:
         score = score_bag(args.bag, args.topic, estimate_bag=args.estimate_bag,
                           scenario=scenario, truth_topic=args.truth_topic, frame=args.frame,
@@ -56,7 +88,6 @@ def run(args: argparse.Namespace) -> int:
     except ScoreError as exc:
         print(f"strapdown-sim score: {exc}", file=sys.stderr)
         return 1
-    out = Path(args.out) if args.out else Path(args.bag) / "score"
     files = write_page(score, out)
     s = score.summary
     pos = s["position_error_m"]["horizontal"]
@@ -67,4 +98,41 @@ def run(args: argparse.Namespace) -> int:
         print(f"time offset {off['offset_s'] * 1e3:.6f} ms ± {off['sigma_s'] * 1e3:.1e} ms")
     for name, path in files.items():
         print(f"  {name:<10} {path}")
+    return 0
+
+
+def _record_live(args: argparse.Namespace, out) -> int:
+    """Play BAG into ``--node`` and record its ``--topic`` (sets ``args.estimate_bag``); 0 when
+    recorded, else the exit status after the one-line reason and the end of the log."""
+    from pathlib import Path
+
+    from strapdown_ros.score.live import LiveInputError, LiveScoreError, record_live_estimate
+
+    if args.estimate_bag is not None:
+        print("strapdown-sim score: --estimate-bag and --node exclude each other (live mode "
+              "records the estimate into --record-to)", file=sys.stderr)  # fmt: skip
+        return 2
+    record_to = Path(args.record_to) if args.record_to else out / "estimate"
+    try:
+        recording = record_live_estimate(
+            args.bag, args.node, args.topic, record_to, inputs=args.inputs,
+            rate_factor=args.rate_factor, force=args.force, domain_id=args.domain_id,
+            startup_timeout_s=args.startup_timeout, linger_s=args.linger,
+        )  # fmt: skip
+    except FileExistsError as exc:
+        print(f"strapdown-sim score: {exc}", file=sys.stderr)
+        return 2
+    except LiveScoreError as exc:
+        tail = "\n".join(exc.log.splitlines()[-30:])
+        print(f"strapdown-sim score: {exc}" + (f"\n--- log (end) ---\n{tail}" if tail else ""),
+              file=sys.stderr)  # fmt: skip
+        return 2 if isinstance(exc, LiveInputError) else 1
+    except KeyboardInterrupt:
+        args.out = str(record_to)  # what main() describes: the recording, closed by the recorder
+        raise
+    print(
+        f"{args.topic}: {recording.count} messages ({recording.msgtype}) recorded live into "
+        f"{recording.out} in {recording.elapsed_s:.1f} s; logs in {recording.log_dir}"
+    )
+    args.estimate_bag = str(recording.out)
     return 0
