@@ -47,6 +47,8 @@ help:
 	@echo "make bench      install the bench extras (pyins) and run every bench/bench_*.py"
 	@echo "make figures    re-measure the docs' figures (tools/figures.py) into docs/figures_measured.json"
 	@echo "make mutation   mutmut on the modules that carry the product's claims, fast tests"
+	@echo "               (MODULE=core/method2.py: one module and its tests; survivors:"
+	@echo "               .venv/bin/python tools/mutation.py core/method2.py --results)"
 	@echo "make clean      remove outputs and caches; make distclean also removes .venv"
 	@echo "PYTHON=$(PYTHON)"
 
@@ -198,9 +200,12 @@ figures: setup
 # MUTATION_ARGS narrows it, e.g. MUTATION_ARGS="strapdown_ros.core.allan*". Results:
 # `.venv/bin/mutmut results`, a survivor's diff: `.venv/bin/mutmut show NAME`.
 MUTATION_ARGS ?=
+# MODULE=core/method2.py: that module against the tests that cover it (tools/mutation.py), in a
+# scratch copy under out/mutation/; without MODULE, setup.cfg's whole list.
+MODULE ?=
 mutation: setup
 	$(VPY) -m pip install -q -r requirements/mutation.txt
-	$(VPY) -m mutmut run $(MUTATION_ARGS)
+	$(VPY) tools/mutation.py $(MODULE) $(if $(MUTATION_ARGS),-- $(MUTATION_ARGS))
 
 # The main job: the live pipeline (nodes as processes over DDS, recorded into a bag) on the
 # default 10-minute flight at RUN_RATE_FACTOR x real time, then the report of the bag.
