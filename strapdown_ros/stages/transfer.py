@@ -236,6 +236,12 @@ class TransferStage:
                     self._imu_last = int(cyc[keep][-1])
             elif b.topic in (spec.master_topic, spec.truth_topic):
                 master = b.topic == spec.master_topic
+                if master and len(b.payloads):
+                    self._master_last = max(self._master_last, int(
+                        (int(np.max(b.stamps_ns)) - self.t0) // self.T))  # fmt: skip
+                b = self._needed(b, master)
+                if not len(b.payloads):
+                    continue
                 st = odometry_state(cdr.deserialize(cdr.ODOMETRY, list(b.payloads)))
                 cyc = (np.asarray(st.stamps_ns, dtype=np.int64) - self.t0) // self.T
                 for i, m in enumerate(cyc.tolist()):
@@ -248,6 +254,27 @@ class TransferStage:
                         self._truth[m] = (st.r_e[i], st.v_e[i], st.c_b_e[i])
         self._process()
         return self._serialize()
+
+    def _needed(self, b: Batch, master: bool) -> Batch:
+        """The messages of an Odometry batch the filter uses, by their header stamps (read
+        from the CDR bytes, as the aided stage does): master cycles around the epochs, truth
+        at the epochs."""
+        head = b"".join(bytes(p[4:12]) for p in b.payloads)
+        if len(head) != 8 * len(b.payloads):
+            return b
+        raw = np.frombuffer(head, dtype=np.dtype([("sec", "<i4"), ("ns", "<u4")]))
+        t = raw["sec"].astype(np.int64) * 1_000_000_000 + raw["ns"].astype(np.int64)
+        m = (t - self.t0) // self.T
+        if master:
+            j = (m + self.L) % self.P
+            need = (m <= 2) | (j == 0) | (j == 1) | (j == self.P - 1)
+        else:
+            need = m % self.P == 0
+        keep = np.flatnonzero(need)
+        if len(keep) == len(b.payloads):
+            return b
+        return Batch(b.topic, b.msgtype, np.asarray(b.stamps_ns)[keep],
+                     [b.payloads[i] for i in keep])  # fmt: skip
 
     # -- processing ------------------------------------------------------------------------------
 
