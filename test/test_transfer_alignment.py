@@ -107,6 +107,7 @@ def test_bad_sections_are_refused_naming_the_key(override, words):
     assert words in str(err.value)
 
 
+@pytest.mark.slow  # imports (and compiles) the filter's kernels
 def test_the_shipped_scenario_plans_the_transfer_topics():
     from strapdown_ros.plan import resolve_plan
 

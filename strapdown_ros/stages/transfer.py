@@ -173,7 +173,7 @@ class TransferStage:
         if sc.imu_errors is not None and spec.imu_topic == sc.imu_errors.topics(
                 sc.recording.topics)[1]:  # fmt: skip
             params = sc.imu_errors.parameters()
-        model = build_model(params, self.Ts, SensorModels(), StateOptions(False, False, False))
+        model = build_model(params, self.Ts, SensorModels(), StateOptions(None, None, False))
         self.layout = TransferLayout(model, spec.lever_arm_state)
         self.rate_variance = ImuErrorModel(params, self.Ts).rate_noise_variance()[0]
         # draws

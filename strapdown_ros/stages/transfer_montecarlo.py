@@ -10,7 +10,8 @@ master errors and the mounting error draw (``mounting_error_deg: null``) from
 
 Command line (docs/transfer_alignment.md)::
 
-    python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --runs 50 [--straight]
+    python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --runs 50 [--straight] [--save DIR]
+    python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --summarize DIR
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --bending 0 1 2 5 10
 """
 
@@ -147,14 +148,31 @@ def _scenario(doc: dict[str, Any], overrides: Sequence[str], duration: float | N
 
 
 def campaign(doc: dict[str, Any], runs: int, directory: Path, duration: float | None,
-             base_seed: int = 0) -> list[TransferResult]:  # fmt: skip
-    """``runs`` runs of the scenario document ``doc`` (its streams made once)."""
+             base_seed: int = 0, save: Path | None = None) -> list[TransferResult]:  # fmt: skip
+    """``runs`` runs of the scenario document ``doc`` (its streams made once); each run's
+    series also written to ``save/run_<k>.npz`` (progress on stderr)."""
+    start = time.perf_counter()
     first = _scenario(doc, _seeded(doc, 0, base_seed), duration, directory)
     base, last = base_batches(first)
+    print(f"streams made, {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
     out = []
     for k in range(runs):
         sc = first if k == 0 else _scenario(doc, _seeded(doc, k, base_seed), duration, directory)
-        out.append(decode_result(run_transfer(sc, base, last), sc))
+        r = decode_result(run_transfer(sc, base, last), sc)
+        out.append(r)
+        if save is not None:
+            save.mkdir(parents=True, exist_ok=True)
+            np.savez(save / f"run_{k:03d}.npz", **r.__dict__)
+        print(f"run {k} done, {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
+    return out
+
+
+def load_results(directory: Path) -> list[TransferResult]:
+    """The runs saved by :func:`campaign` in ``directory``."""
+    out = []
+    for path in sorted(directory.glob("run_*.npz")):
+        with np.load(path) as z:
+            out.append(TransferResult(**{k: z[k] for k in z.files}))
     return out
 
 
@@ -247,7 +265,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--bending", type=float, nargs="+", default=None,
                     help="bending amplitudes (mm): the bending table instead of a campaign")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--save", type=Path, default=None, help="write each run's series here")
+    ap.add_argument("--summarize", type=Path, default=None,
+                    help="only summarize the runs saved in this directory")
     args = ap.parse_args(argv)
+    if args.summarize is not None:
+        results = load_results(args.summarize)
+        print(f"{args.summarize}: {len(results)} runs")
+        print("\n".join(summary(results)))
+        return 0
     doc = yaml.safe_load(args.scenario.read_text())
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -266,7 +292,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.straight:
                 total = sum(s["duration_s"] for s in doc["trajectory"]["segments"])
                 doc["trajectory"]["segments"] = [{"duration_s": total}]
-            lines = summary(campaign(doc, args.runs, Path(tmp), args.duration, args.seed))
+            lines = summary(campaign(doc, args.runs, Path(tmp), args.duration, args.seed,
+                                         args.save))
     took = time.perf_counter() - start
     what = "bending table" if args.bending is not None else (
         f"{args.runs} runs, {'straight flight' if args.straight else 'manoeuvre'}")  # fmt: skip

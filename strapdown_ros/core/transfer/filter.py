@@ -3,7 +3,8 @@
 States (error = estimate minus truth, E0 frame; docs/transfer_alignment.md §3): the aided
 filter's ``δR, δV, φ`` and gyro/accelerometer biases (the layout of
 :func:`strapdown_ros.core.aided.model.build_model`, its IMU white-noise PSDs and bias random
-walks), then the mounting misalignment ``μ`` (3, Br axes, random constant or random walk) and
+walks, and its Gauss–Markov bias and scale-factor states when the slave's error model has those
+terms), then the mounting misalignment ``μ`` (3, Br axes, random constant or random walk) and
 optionally the lever-arm error ``δl`` (3, Br FRD, random constant).
 
 The inertial part, the error dynamics, the Van Loan discretization and the Joseph update are
@@ -31,7 +32,7 @@ from strapdown_ros.core.aided.dynamics import (
     sparse_dynamics,
     van_loan_series,
 )
-from strapdown_ros.core.aided.layout import B_BA, B_BG
+from strapdown_ros.core.aided.layout import B_BA, B_BG, B_GMA, B_GMG, B_SFA, B_SFG
 from strapdown_ros.core.aided.model import FilterModel
 from strapdown_ros.core.aided.update import joseph_update, reset_attitude
 from strapdown_ros.core.array_types import F64
@@ -138,6 +139,16 @@ class TransferFilter:
         self.ba = int(self.off[B_BA])
         self.m = 0
 
+    def _corrected(self, raw: F64, bias: int, gm: int, sf: int) -> F64:
+        """``(Δ̃ − (b̂ + m̂) T) / (1 + ŝ)`` (the aided filter's correction; absent blocks 0)."""
+        b = self.est[bias : bias + 3].copy()
+        if gm >= 0:
+            b = b + self.est[gm : gm + 3]
+        x = raw - b * self.T
+        if sf >= 0:
+            x = x / (1.0 + self.est[sf : sf + 3])
+        return np.ascontiguousarray(x)
+
     # -- propagation ----------------------------------------------------------------------------
 
     def propagate(self, dalpha: F64, dv: F64) -> None:
@@ -147,9 +158,10 @@ class TransferFilter:
         k = len(da)
         if not k:
             return
-        est, T = self.est, self.T
-        da_c = np.ascontiguousarray(da - est[self.bg : self.bg + 3] * T)
-        dv_c = np.ascontiguousarray(dvv - est[self.ba : self.ba + 3] * T)
+        T = self.T
+        da_c = self._corrected(da, self.bg, self.off[B_GMG], self.off[B_SFG])
+        dv_c = self._corrected(dvv, self.ba, self.off[B_GMA], self.off[B_SFA])
+        est = self.est
         sr = np.zeros((k + 1, 3))
         sv = np.zeros((k + 1, 3))
         sc = np.zeros((k + 1, 3, 3))
