@@ -27,6 +27,8 @@ TOOL = REPO / "tools" / "compare_generate.py"
 BASE = "85f039d"
 DURATION_CAP_S = "30"
 SCENARIOS = sorted((REPO / "config" / "scenarios").glob("*.yaml"))
+#: Shipped scenarios added after BASE (nothing to compare them with; their own tests check them).
+NEW_SINCE_BASE = ("transfer_alignment",)
 def _compare_generate():
     spec = importlib.util.spec_from_file_location("compare_generate", TOOL)
     module = importlib.util.module_from_spec(spec)
@@ -63,6 +65,8 @@ def test_generate_is_bit_identical_to_the_base(scenario: Path) -> None:
     why = _base_unavailable()
     if why:
         pytest.skip(why)
+    if scenario.stem in NEW_SINCE_BASE:
+        pytest.skip(f"{scenario.stem} is new since {BASE}")
     proc = subprocess.run(
         [sys.executable, str(TOOL), "--base", BASE, "--duration-cap", DURATION_CAP_S,
          str(scenario)],

@@ -38,6 +38,7 @@ from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resol
 from strapdown_ros.config.tf import TFSpec, check_tf, sensor_frames
 from strapdown_ros.config.timing import TimingSpec, check_timing
 from strapdown_ros.config.trajectory import TrajectorySpec, check_trajectory
+from strapdown_ros.config.transfer import TransferAlignmentSpec, check_transfer
 from strapdown_ros.config.variation import VariationSpec, check_variation
 from strapdown_ros.config.yaml_limits import (
     MAX_BYTES,
@@ -206,6 +207,8 @@ class Scenario(Model):
     aiding: AidingSpec | None = None  # SECTION aiding
     timing: TimingSpec | None = None  # SECTION timing (config/timing.py): sensor timing errors
     aided: AidedSpec | None = None  # SECTION aided (config/aided.py): the aided INS
+    # SECTION transfer_alignment (config/transfer.py): the variation IMU aided by the reference
+    transfer_alignment: TransferAlignmentSpec | None = None
     recording: Recording = Field(default_factory=Recording)
 
     _path: Path | None = PrivateAttr(default=None)
@@ -305,6 +308,13 @@ class Scenario(Model):
             topics=topics,
             measured=None if self.imu_errors is None else self.imu_errors.topics(topics),
             aiding=self.aiding,
+            period_ns=self.period_ns,
+        )
+        check_transfer(
+            self.transfer_alignment,
+            topics=topics,
+            measured=None if self.imu_errors is None else self.imu_errors.topics(topics),
+            variation=self.variation,
             period_ns=self.period_ns,
         )
         navigator = navigator_spec(self)

@@ -212,6 +212,33 @@ def _aided_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
     return AidedStage(plan.scenario)
 
 
+# -- transfer_alignment: the variation IMU's INS aided by the reference state -------------------
+
+
+def _transfer_enabled(scenario: Scenario) -> bool:
+    from strapdown_ros.config.transfer import transfer_spec
+
+    return transfer_spec(scenario) is not None
+
+
+def _transfer_inputs(plan: Plan) -> tuple[str, ...]:
+    from strapdown_ros.stages.transfer import transfer_input_topics
+
+    return tuple(transfer_input_topics(plan.scenario))
+
+
+def _transfer_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
+    from strapdown_ros.stages.transfer import transfer_topic_plans
+
+    return {p.topic: p for p in transfer_topic_plans(plan.scenario, plan.variation_cycles)}
+
+
+def _transfer_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
+    from strapdown_ros.stages.transfer import TransferStage
+
+    return TransferStage(plan.scenario, plan.variation_cycles)
+
+
 # -- timing: sensor timing errors on the published IMU and aiding messages ----------------------
 
 
@@ -270,6 +297,8 @@ CHAIN: tuple[Link, ...] = (
     Link("aiding", "aiding_node", lambda s: s.aiding is not None and bool(s.aiding.sensors()),
          _aiding_inputs, _aiding_outputs, _aiding_stage),  # fmt: skip
     Link("aided", "aided_node", _aided_enabled, _aided_inputs, _aided_outputs, _aided_stage),
+    Link("transfer_alignment", None, _transfer_enabled, _transfer_inputs, _transfer_outputs,
+         _transfer_stage),  # fmt: skip
     Link("timing", None, lambda s: s.timing is not None and bool(s.timing.sensors()),
          _timing_inputs, _timing_outputs, _timing_stage),  # fmt: skip
     Link("tf", None, _always, _none, _tf_outputs, _tf_stage),
