@@ -500,3 +500,51 @@ def test_scalar_fields_against_the_vectorized_ones(igrf):
         b = np.array(igrf_ned1(*r, lat, g, hc, a1, a2, d, 6371200.0))
         ref = igrf_field_ned(r[None], np.array([lat]), g, hc)[0]
         np.testing.assert_allclose(b, ref, rtol=0, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# estimates of the Gauss–Markov states between updates
+
+
+def test_gauss_markov_estimates_decay_as_their_covariance():
+    """Between updates the estimate of a Gauss–Markov state is its conditional mean
+    ``e^{-t/τ} x̂(0)``: the GNSS position/velocity, barometer drift and IMU Gauss–Markov
+    estimates decay with their τ (the Φ the covariance uses), random constants hold."""
+    from strapdown_ros.core.aided.engine import AidedFilter, FilterSetup
+    from strapdown_ros.core.aided.model import SensorModels, build_model
+    from strapdown_ros.core.aiding.baro import BaroErrors
+    from strapdown_ros.core.aiding.gnss import GnssErrors
+    from strapdown_ros.core.imu_errors import ImuErrorParameters, SensorErrors
+
+    def triad(tau: float) -> SensorErrors:
+        z = SensorErrors.zero()
+        return SensorErrors(**{**{k: getattr(z, k) for k in z.__dataclass_fields__},
+                               "turn_on_bias_sigma": np.full(3, 1e-4),
+                               "bias_instability": np.full(3, 1e-5),
+                               "correlation_time_s": np.full(3, tau)})  # fmt: skip
+
+    tau_p, tau_v, tau_d, tau_g, tau_a = 7.0, 3.0, 11.0, 13.0, 17.0
+    gnss = GnssErrors(position_white=np.ones(3), position_gm_sigma=np.ones(3),
+                      position_gm_tau_s=np.full(3, tau_p), velocity_white=np.ones(3),
+                      velocity_gm_sigma=np.ones(3), velocity_gm_tau_s=np.full(3, tau_v))
+    baro = BaroErrors(turn_on_bias_sigma=10.0, drift_sigma=5.0, drift_tau_s=tau_d)
+    model = build_model(ImuErrorParameters(triad(tau_g), triad(tau_a), 0), 0.01,
+                        SensorModels(gnss=gnss, baro=baro))  # fmt: skip
+    lay = model.layout
+    r0 = geodetic_to_ecef(np.array([0.7]), np.array([0.1]), np.array([100.0]))[0]
+    filt = AidedFilter(model, FilterSetup(period_ns=10_000_000, start_cycle=0,
+                                          grid_periods=(10, 7)), r0, np.zeros(3), np.eye(3),
+                       np.eye(lay.n))  # fmt: skip
+    filt.est[9:] = np.linspace(0.5, 1.5, lay.n - 9)
+    x0 = filt.est.copy()
+    cycles = 1000  # 10 s, covariance steps of 0.1 s and 0.07 s
+    filt.add_imu(np.zeros((cycles, 3)), np.zeros((cycles, 3)))
+    filt.advance(cycles)
+    t = cycles * 0.01
+    expect = x0.copy()
+    for block, tau in ((B_GNSS_POS, tau_p), (B_GNSS_VEL, tau_v), (B_BARO_DRIFT, tau_d),
+                       (B_GMG, tau_g), (B_GMA, tau_a)):  # fmt: skip
+        expect[lay.slice(block)] *= np.exp(-t / tau)
+    np.testing.assert_allclose(filt.est[9:], expect[9:], rtol=1e-12)
+    for block in (B_BG, B_BA, B_BARO_BIAS):
+        assert np.array_equal(filt.est[lay.slice(block)], x0[lay.slice(block)])

@@ -36,6 +36,7 @@ from strapdown_ros.core.aided._small import rotation_exp
 from strapdown_ros.core.aided.dynamics import (
     continuous_noise,
     propagate_covariance,
+    propagate_estimates,
     sparse_dynamics,
     van_loan_series,
 )
@@ -159,6 +160,7 @@ def _cov_step(nav, est, p, acc, off, beta, q, q_ins, ni, period, gmodel):
     qc = continuous_noise(cm, q_ins, q, ni)
     phi, qd = van_loan_series(rows, cols, vals, nnz, qc, dt)
     propagate_covariance(p, phi, qd, beta, q, dt, ni)
+    propagate_estimates(est, beta, dt)
     acc[:] = 0.0
 
 
