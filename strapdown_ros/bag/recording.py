@@ -99,11 +99,11 @@ class Recording:
         use_stamp = self.log_time == "header" and inspector.has_stamp
         strip = inspector.strip if inspector.may_be_padded else None
         stamp_ns = inspector.stamp_ns
-        conn = None
+        write = None
         recording = self
 
         def record(payload: bytes | memoryview, receive_ns: int) -> None:
-            nonlocal conn
+            nonlocal write
             if recording.first_receive_ns is None:
                 recording.first_receive_ns = receive_ns
             recording.last_receive_ns = receive_ns
@@ -121,9 +121,9 @@ class Recording:
             if t is None:
                 t = receive_ns
                 stats.receive_time_logs += 1
-            if conn is None:
-                conn = writer.add_topic(topic, msgtype, list(qos()) or None)
-            writer.write_connection(conn, t, payload)
+            if write is None:
+                write = writer.sink(writer.add_topic(topic, msgtype, list(qos()) or None))
+            write(t, payload)
             stats.count += 1
             stats.bytes += len(payload)
 
