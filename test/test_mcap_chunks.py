@@ -42,7 +42,8 @@ def _messages(n: int) -> list[tuple[str, str, int, bytes]]:
         if k % 3 == 0:
             fix = NavSatFix(header, NavSatStatus(0, 1), *rng.normal(size=3),
                             rng.normal(size=9), 2)  # fmt: skip
-            out.append(("/fix", fix.__msgtype__, stamp, bytes(TS.serialize_cdr(fix, fix.__msgtype__))))
+            data = bytes(TS.serialize_cdr(fix, fix.__msgtype__))
+            out.append(("/fix", fix.__msgtype__, stamp, data))
         if k > n // 2 and k % 7 == 0:  # a topic whose first message comes mid-stream
             out.append(("/late", vec.__msgtype__, stamp + 1,
                         bytes(TS.serialize_cdr(vec, vec.__msgtype__))))  # fmt: skip
