@@ -63,6 +63,9 @@ NODE_NAME = "bag_recorder"
 RELIABILITIES = ("auto", "reliable", "best_effort")
 #: After a stop request: spin until a pass brings no message (but at most drain_timeout_s).
 QUIET_S = 0.05
+#: Seconds between looks at the publishers once every topic is subscribed (only new
+#: publishers' QoS is checked then; each look asks the graph about every topic).
+SETTLED_DISCOVERY_S = 2.0
 #: Messages "taken" reported for a topic the recorder does not record (flow control).
 NOT_HELD_BACK = 1 << 60
 
@@ -400,7 +403,7 @@ class BagRecorder(SignalStop, Node):
     def _record(self, executor, start: float) -> int:
         recording = self.recording
         assert recording is not None
-        next_discovery = next_progress = time.monotonic()
+        next_discovery = next_progress = next_settled = time.monotonic()
         reporter = None
         if self.report_progress:
             from strapdown_ros.nodes.flow import ProgressReporter
@@ -419,7 +422,10 @@ class BagRecorder(SignalStop, Node):
                 reporter.maybe_report(now)
             if now >= next_discovery:
                 self._sim_time[0] = self.get_clock().ros_time_is_active
-                self._discover()
+                if now >= next_settled:
+                    self._discover()
+                    if all(t.subscription is not None for t in self.topics.values()):
+                        next_settled = now + max(SETTLED_DISCOVERY_S, self.discovery_period_s)
                 next_discovery = now + self.discovery_period_s
                 if self.stop_when_done and self._publishers_gone():
                     self._stop_reason = "every publisher is gone"
