@@ -14,7 +14,8 @@ each topic it plays. Then, in the same run:
   *publish - due* is the player's own report: CLOCK_MONOTONIC just before each publish minus its
   due time (p50/p99/max over every message). *delivered* is measured by the subscriber, which
   stamps every arrival with ``time.monotonic`` (system-wide clock): arrival_i - (a + t_i - t_0),
-  t the log time (the k-th arrival on a topic is its k-th message: reliable, in order), the anchor a chosen so that the earliest message has error 0 (lateness beyond
+  t the log time (the k-th arrival on a topic is its k-th message: reliable, in order), the
+  anchor a chosen so that the earliest message has error 0 (lateness beyond
   the fastest delivery; DDS and the subscriber's own scheduling included).
   ``p99_vs_floor`` = player p99 / floor p99 puts the figure in context on a loaded machine.
 * ``player, SingleThreadedExecutor``: the same with ``executor:=single_threaded`` (the
