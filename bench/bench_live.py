@@ -23,14 +23,17 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
+import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 from strapdown_ros.bag.reader import read_bag
-from strapdown_ros.pipeline import PROFILE_ENV, PipelineError, run_pipeline
+from strapdown_ros.pipeline import PROFILE_ENV
 
 SCENARIO = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 TARGET_HZ = 1000.0
@@ -47,30 +50,96 @@ def _uptime() -> str:
         return "load average " + ", ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def _one_run(rate: float, duration: float, gen: Path, live: Path) -> dict:
+def _proc_cpu(root: int) -> dict[str, float]:
+    """CPU seconds so far of the node processes under ``root`` (by console-script name)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+            cmd = (d / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()
+        if int(fields[1]) != root:  # ppid
+            continue
+        names = [Path(c.decode(errors="replace")).name for c in cmd[:2]]
+        name = next((n for n in names if n in NODES), None)
+        if name is not None:
+            out[name] = (int(fields[11]) + int(fields[12])) / tick
+    return out
+
+
+def _one_run(
+    python: str, rate: float, duration: float, gen: Path, live: Path, flow: bool
+) -> dict:
+    """One ``strapdown-sim run`` of the tree of ``python``; the lag lines relayed as they come."""
     load0 = os.getloadavg()[0]
+    cmd = [python, "-m", "strapdown_ros.cli", "run", str(SCENARIO), "--out", str(live),
+           "--duration", str(duration), "--set", f"rate_hz={rate:g}", "--force"]  # fmt: skip
+    if flow:
+        cmd.append("--unpaced")
     t0 = time.monotonic()
-    result = run_pipeline(
-        SCENARIO, live, overrides=[f"rate_hz={rate:g}"], duration_s=duration, progress=False
-    )
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+
+    def read() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append(line)
+            if "behind real time" in line:
+                print(f"{'':>13}{line.strip()}", flush=True)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    start_cpu: dict[str, float] = {}
+    marker = live.parent / f"{live.name}.logs" / "bag_recorder.log"
+    while proc.poll() is None:  # start-up done: the recorder subscribed to the source
+        if not start_cpu and "subscribed to /reference/imu" in _read(marker):
+            start_cpu = _proc_cpu(proc.pid)
+        time.sleep(0.1)
+    reader.join(timeout=10)
     wall = time.monotonic() - t0
     load1 = os.getloadavg()[0]
+    text = "".join(lines)
+    if proc.returncode not in (0, 1) or "topics:" not in text:
+        raise RuntimeError(f"strapdown-sim run failed ({proc.returncode}):\n{text[-3000:]}")
+    cpu = {n: float(v) for n, v in re.findall(r"(\w+_node|bag_recorder) ([0-9.]+) s", _cpu(text))}
     a, b = read_bag(live, raw=True), read_bag(gen, raw=True)
     same = set(a.topics) == set(b.topics) and all(
         [bytes(p) for p in a.topics[t].payloads] == [bytes(p) for p in d.payloads]
         for t, d in b.topics.items()
     )
-    msgs = sum(result.counts.values())
+    msgs = sum(len(d) for d in a.topics.values())
+    expected = sum(len(d) for d in b.topics.values())
+    pacing = re.search(r"pacing:\s+(.*)", text)
     return {
         "msgs": msgs,
-        "expected": sum(result.expected.values()),
-        "lost": sum(abs(v) for v in result.lost.values()),
+        "expected": expected,
+        "lost": expected - msgs,
         "same": same,
         "wall": wall,
         "load": (load0, load1),
-        "cpu": result.cpu_s,
-        "pacing": result.pacing,
+        "cpu": cpu,
+        "cpu_run": {n: v - start_cpu.get(n, 0.0) for n, v in cpu.items()},
+        "startup_known": bool(start_cpu),
+        "pacing": pacing.group(1) if pacing else "",
+        "lag_lines": sum("behind real time" in line for line in lines),
     }
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(errors="replace")
+    except OSError:
+        return ""
+
+
+def _cpu(text: str) -> str:
+    m = re.search(r"cpu:\s+(.*)", text)
+    return m.group(1) if m else ""
 
 
 def main(argv: list[str] | None = None) -> float:
@@ -79,16 +148,25 @@ def main(argv: list[str] | None = None) -> float:
     parser.add_argument("--duration", type=float, default=20.0)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--profile", type=Path, default=None, metavar="DIR")
+    parser.add_argument("--base", type=Path, default=None, metavar="TREE",
+                        help="an earlier source tree (with its .venv), run alternately")
+    parser.add_argument("--flow", action="store_true",
+                        help="flow-controlled unpaced runs (lossless: CPU per message only)")
     args = parser.parse_args(argv)
+    trees = [("this", sys.executable)]
+    if args.base is not None:
+        trees.append(("base", str(args.base.resolve() / ".venv" / "bin" / "python")))
     best = 0.0
     loads: list[float] = []
-    print(f"scenario: {SCENARIO.name}, {args.duration:g} s of data per run, rate_factor 1, "
-          f"{args.repeats} runs per rate")  # fmt: skip
+    mode = "unpaced, flow control" if args.flow else "rate_factor 1"
+    print(f"scenario: {SCENARIO.name}, {args.duration:g} s of data per run, {mode}, "
+          f"{args.repeats} runs per rate" + (f", base tree {args.base}" if args.base else ""))
     print(f"start: {_uptime()}")
     head = "  ".join(f"{n.split('_')[0][:4]:>5}" for n in NODES)
-    print(f"{'rate Hz':>8} {'run':>3} {'msgs':>8} {'lost':>7} {'same':>5} {'wall s':>6} "
-          f"{'load':>10}  cpu s: {head}  {'us/msg':>6}")  # fmt: skip
+    print(f"{'rate Hz':>8} {'run':>8} {'msgs':>8} {'lost':>7} {'same':>5} {'wall s':>6} "
+          f"{'load':>10}  {head}  {'total':>6}  (CPU µs per recorded message)")  # fmt: skip
     worst: dict[float, int] = {}
+    per_msg: dict[str, list[float]] = {}
     for rate in sorted(args.rates):
         ok_all = True
         with tempfile.TemporaryDirectory() as tmp:
@@ -105,29 +183,38 @@ def main(argv: list[str] | None = None) -> float:
                     pdir = args.profile / f"{rate:g}"
                     pdir.mkdir(parents=True, exist_ok=True)
                     os.environ[PROFILE_ENV] = str(pdir)
-                try:
-                    r = _one_run(rate, args.duration, gen, Path(tmp) / f"run{k}")
-                except PipelineError as exc:
-                    print(f"{rate:>8g} {k + 1:>3}  pipeline failed: {exc}")
-                    ok_all = False
-                    continue
-                finally:
-                    os.environ.pop(PROFILE_ENV, None)
-                loads += list(r["load"])
-                cpu = "  ".join(f"{r['cpu'].get(n, float('nan')):>5.1f}" for n in NODES)
-                us = 1e6 * sum(r["cpu"].values()) / max(r["msgs"], 1)
-                tag = " (profiled)" if profile else ""
-                print(f"{rate:>8g} {k + 1:>3} {r['msgs']:>8d} {r['lost']:>7d} "
-                      f"{str(r['same']):>5} {r['wall']:>6.1f} "
-                      f"{r['load'][0]:>4.2f}-{r['load'][1]:<4.2f}  cpu s: {cpu}  {us:>6.0f}"
-                      f"{tag}")  # fmt: skip
-                if r["pacing"]:
-                    print(f"{'':>13}trajectory {r['pacing']}")
-                if not profile:
-                    worst[rate] = max(worst.get(rate, 0), r["lost"])
-                    ok_all = ok_all and r["lost"] == 0 and r["same"]
-        print(f"{rate:>8g} worst of {args.repeats}: {worst.get(rate, -1)} lost"
-              f"{'' if ok_all else '  (not zero loss in every run)'}")  # fmt: skip
+                for tag, python in trees if not profile else trees[:1]:
+                    try:
+                        r = _one_run(python, rate, args.duration, gen, Path(tmp) / f"run{k}",
+                                     args.flow)  # fmt: skip
+                    except RuntimeError as exc:
+                        print(f"{rate:>8g} {k + 1:>3} {tag}  pipeline failed: {exc}")
+                        ok_all = False
+                        continue
+                    loads += list(r["load"])
+                    msgs = max(r["msgs"], 1)
+                    run = r["cpu_run"]
+                    cells = "  ".join(f"{1e6 * run.get(n, float('nan')) / msgs:>5.1f}"
+                                      for n in NODES)  # fmt: skip
+                    total = 1e6 * sum(run.values()) / msgs
+                    label = f"{k + 1} {tag}" + (" prof" if profile else "")
+                    print(f"{rate:>8g} {label:>8} {r['msgs']:>8d} {r['lost']:>7d} "
+                          f"{str(r['same']):>5} {r['wall']:>6.1f} "
+                          f"{r['load'][0]:>4.2f}-{r['load'][1]:<4.2f}  {cells}  "
+                          f"{total:>6.1f}" + ("" if r["startup_known"] else " (start-up in)"))
+                    if r["pacing"]:
+                        print(f"{'':>13}trajectory {r['pacing']}")
+                    if not profile:
+                        per_msg.setdefault(f"{rate:g} {tag}", []).append(total)
+                    if not profile and tag == "this" and not args.flow:
+                        worst[rate] = max(worst.get(rate, 0), r["lost"])
+                        ok_all = ok_all and r["lost"] == 0 and r["same"]
+                    if args.flow and not r["same"]:
+                        print(f"{'':>13}NOT IDENTICAL to generate's bag")
+                os.environ.pop(PROFILE_ENV, None)
+        if not args.flow:
+            print(f"{rate:>8g} worst of {args.repeats}: {worst.get(rate, -1)} lost"
+                  f"{'' if ok_all else '  (not zero loss in every run)'}")  # fmt: skip
         if ok_all and rate in worst and rate > best and all(
             worst.get(r, 1) == 0 for r in args.rates if r < rate
         ):  # fmt: skip
@@ -136,6 +223,12 @@ def main(argv: list[str] | None = None) -> float:
     if loads:
         print(f"1-minute load average during the runs: {min(loads):.2f} to {max(loads):.2f} "
               f"(2 cores; an idle machine shows < 0.5 before a run)")  # fmt: skip
+    for key, values in per_msg.items():
+        print(f"cpu_us_per_msg {key}: median {statistics.median(values):.1f} "
+              f"(start-up excluded, all processes)")
+    if args.flow:
+        print("live_zero_loss_max_rate_hz: not measured (--flow: flow-controlled runs)")
+        return best
     print(f"highest zero-loss rate (all {args.repeats} runs) / {TARGET_HZ:g} Hz target: "
           f"{best / TARGET_HZ:.2f} x")  # fmt: skip
     print(f"live_zero_loss_max_rate_hz: {best:g} Hz")

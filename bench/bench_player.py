@@ -1,8 +1,10 @@
 """Benchmark: bag_player's pacing error against the wall clock at 200 Hz and 1 kHz, vs the floor.
 
-For each rate, a bag of the default scenario's reference stream (Imu, Odometry, NavSatFix;
-``--duration`` s, ``rate_hz`` overridden) is written by ``strapdown-sim generate``. Then, in
-the same run:
+For each rate, a bag of the default scenario's reference stream (Imu, Odometry, NavSatFix, with
+the TF, map-frame odometry and aiding topics derived from it; ``--duration`` s, ``rate_hz``
+overridden) is written by ``strapdown-sim generate``. The subscriber subscribes to every topic
+of the bag (with the type the bag stores) and /clock: the player waits for a subscription on
+each topic it plays. Then, in the same run:
 
 * ``floor``: a bare loop in this process that sleeps until each due time of the bag's schedule
   (``time.sleep`` to the deadline, no ROS, no bag, normal scheduler): the wall-clock pacing the
@@ -12,7 +14,8 @@ the same run:
   *publish - due* is the player's own report: CLOCK_MONOTONIC just before each publish minus its
   due time (p50/p99/max over every message). *delivered* is measured by the subscriber, which
   stamps every arrival with ``time.monotonic`` (system-wide clock): arrival_i - (a + t_i - t_0),
-  t the log time, the anchor a chosen so that the earliest message has error 0 (lateness beyond
+  t the log time (the k-th arrival on a topic is its k-th message: reliable, in order), the
+  anchor a chosen so that the earliest message has error 0 (lateness beyond
   the fastest delivery; DDS and the subscriber's own scheduling included).
   ``p99_vs_floor`` = player p99 / floor p99 puts the figure in context on a loaded machine.
 * ``player, SingleThreadedExecutor``: the same with ``executor:=single_threaded`` (the
@@ -43,11 +46,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 OVERRIDES = ["variation=null", "navigator=null", "imu_errors=null"]
-TYPES = {
-    "/reference/odom": "nav_msgs/msg/Odometry",
-    "/reference/fix": "sensor_msgs/msg/NavSatFix",
-    "/reference/imu": "sensor_msgs/msg/Imu",
-}
+CLOCK = ("/clock", "rosgraph_msgs/msg/Clock")
 PACING = re.compile(r"pacing error over \d+ messages: p50 (\S+) ms, p99 (\S+) ms, max (\S+) ms")
 
 
@@ -56,15 +55,15 @@ def _bin(name: str) -> str:
     return str(local) if local.exists() else name
 
 
-def subscribe(out: str, counts: dict[str, int], timeout_s: float, rt: int) -> int:
-    """Subscriber mode: record (topic, stamp, arrival) of every message; write ``out``."""
+def subscribe(
+    out: str, counts: dict[str, int], types: dict[str, str], timeout_s: float, rt: int
+) -> int:
+    """Subscriber mode: record the arrival time of every message per topic; write ``out``."""
     if rt > 0:
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt))
         except OSError:
             pass
-    import struct
-
     import rclpy
     from rclpy.experimental import EventsExecutor
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -77,17 +76,13 @@ def subscribe(out: str, counts: dict[str, int], timeout_s: float, rt: int) -> in
         history=HistoryPolicy.KEEP_ALL, depth=1, reliability=ReliabilityPolicy.RELIABLE
     )
     arrival: dict[str, list[float]] = {t: [] for t in counts}
-    stamps: dict[str, list[int]] = {t: [] for t in counts}
-    unpack = struct.Struct("<iI").unpack_from
     subs = []
     for topic in counts:
 
-        def on_message(data: bytes, topic: str = topic) -> None:
-            arrival[topic].append(time.monotonic())
-            sec, nsec = unpack(data, 4)
-            stamps[topic].append(sec * 1_000_000_000 + nsec)
+        def on_message(data: bytes, append=arrival[topic].append) -> None:
+            append(time.monotonic())
 
-        cls = message_class(TYPES.get(topic, "rosgraph_msgs/msg/Clock"))
+        cls = message_class(types[topic])
         subs.append(node.create_subscription(cls, topic, on_message, qos, raw=True))
     executor = EventsExecutor()
     executor.add_node(node)
@@ -96,7 +91,7 @@ def subscribe(out: str, counts: dict[str, int], timeout_s: float, rt: int) -> in
     while any(len(arrival[t]) < n for t, n in counts.items()) and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.1)
     with open(out, "wb") as f:
-        pickle.dump({"arrival": arrival, "stamps": stamps}, f)
+        pickle.dump({"arrival": arrival}, f)
     executor.shutdown()
     node.destroy_node()
     rclpy.try_shutdown()
@@ -123,13 +118,15 @@ def stats(errors_s: np.ndarray) -> str:
 
 
 def play(
-    bag: Path, counts: dict[str, int], duration_s: float, tmp: Path, env, rt: int,
-    executor: str = "events",
+    bag: Path, times: dict[str, np.ndarray], types: dict[str, str], duration_s: float,
+    tmp: Path, env, rt: int, executor: str = "events",
 ):  # fmt: skip
-    """Play ``bag`` to a subscriber process; returns (subscriber errors (s), player's p99 (ms),
-    player's report)."""
+    """Play ``bag`` to a subscriber process (``times``: each topic's log times, ns, in order;
+    ``types``: its message type); returns (subscriber errors (s), player's p99 (ms), player's
+    report)."""
     out = tmp / "sub.pkl"
-    spec = ",".join(f"{t}={n}" for t, n in counts.items())
+    counts = {t: len(v) for t, v in times.items()}
+    spec = ",".join(f"{t}={types[t]}={n}" for t, n in counts.items())
     sub = subprocess.Popen(
         [sys.executable, __file__, "--subscribe", str(out), "--counts", spec,
          "--timeout", str(duration_s + 60), "--rt", str(rt)],
@@ -149,10 +146,12 @@ def play(
         raise SystemExit(f"bag_player failed:\n{log}")
     with open(out, "rb") as f:
         rec = pickle.load(f)
+    got = {t: len(rec["arrival"][t]) for t in counts}
+    if got != counts:
+        short = {t: f"{got[t]} of {n}" for t, n in counts.items() if got[t] != n}
+        raise SystemExit(f"the subscriber did not get every message: {short}")
     arrival = np.concatenate([np.asarray(rec["arrival"][t]) for t in counts])
-    stamps = np.concatenate([np.asarray(rec["stamps"][t], dtype=np.int64) for t in counts])
-    if arrival.size != sum(counts.values()):
-        raise SystemExit(f"the subscriber got {arrival.size} of {sum(counts.values())} messages")
+    stamps = np.concatenate([times[t] for t in counts])
     # anchored at the earliest delivery: errors are lateness beyond the fastest message's
     errors = arrival - (stamps - stamps.min()) * 1e-9
     errors -= errors.min()
@@ -174,11 +173,12 @@ def run_rate(rate_hz: int, duration_s: float, tmp: Path, env: dict[str, str]) ->
     subprocess.run(cmd, check=True, cwd=REPO)
     from strapdown_ros.bag.reader import read_bag
 
-    contents = read_bag(bag)
-    counts = {t: len(d) for t, d in contents.topics.items()}
-    all_t = np.sort(np.concatenate([d.log_time_ns for d in contents.topics.values()]))
-    counts["/clock"] = int(np.unique(all_t).size)
-    total = sum(counts.values())
+    contents = read_bag(bag, raw=True)
+    times = {t: np.asarray(d.log_time_ns, dtype=np.int64) for t, d in contents.topics.items()}
+    types = {t: d.msgtype for t, d in contents.topics.items()}
+    all_t = np.sort(np.concatenate(list(times.values())))
+    times[CLOCK[0]], types[CLOCK[0]] = np.unique(all_t), CLOCK[1]  # one /clock per log time
+    total = sum(len(v) for v in times.values())
     print(f"rate {rate_hz} Hz: {duration_s:g} s, {total} messages, "
           f"{total / duration_s:.0f} msgs/s incl. /clock")  # fmt: skip
     floor_err = floor(all_t)
@@ -191,7 +191,7 @@ def run_rate(rate_hz: int, duration_s: float, tmp: Path, env: dict[str, str]) ->
         ("player_rt", 10, "events", "player, SCHED_FIFO 10"),
     )
     for label, rt, executor, name in runs:
-        errors, p99, own = play(bag, counts, duration_s, tmp, env, rt, executor)
+        errors, p99, own = play(bag, times, types, duration_s, tmp, env, rt, executor)
         print(f"  {name + ' (publish - due):':<48}{own}  p99_vs_floor {p99 / p99_floor:.2f} x")
         print(f"  {name + ' (delivered):':<48}{stats(errors)}")
         result[label] = p99
@@ -202,7 +202,7 @@ def run_rate(rate_hz: int, duration_s: float, tmp: Path, env: dict[str, str]) ->
     return result
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--rates", type=int, nargs="+", default=[200, 1000])
@@ -210,10 +210,12 @@ def main() -> None:
     parser.add_argument("--counts", default="", help=argparse.SUPPRESS)
     parser.add_argument("--timeout", type=float, default=60.0, help=argparse.SUPPRESS)
     parser.add_argument("--rt", type=int, default=0, help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.subscribe:
-        counts = {k: int(v) for k, v in (s.rsplit("=", 1) for s in args.counts.split(","))}
-        sys.exit(subscribe(args.subscribe, counts, args.timeout, args.rt))
+        spec = [s.split("=") for s in args.counts.split(",")]
+        counts = {topic: int(n) for topic, _, n in spec}
+        types = {topic: msgtype for topic, msgtype, _ in spec}
+        sys.exit(subscribe(args.subscribe, counts, types, args.timeout, args.rt))
 
     env = dict(os.environ)
     # a private domain in 102..232 (test sessions use 1..101, see test/conftest.py)

@@ -36,12 +36,13 @@ def offsets(n: int, period: float) -> OffsetArrays:
     return OffsetArrays(lever, np.zeros((n, 3)), scan)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pairs", type=int, default=2000, help="pairs timed one at a time")
-    args = parser.parse_args()
-    reference = generate_reference(load_scenario(DEFAULT))
+    parser.add_argument("--duration", type=float, default=None, help="seconds of the reference")
+    args = parser.parse_args(argv)
+    reference = generate_reference(load_scenario(DEFAULT, (), args.duration))
     off = offsets(reference.cycles + 1, reference.period)
     best = np.inf
     for _ in range(args.repeats):

@@ -43,6 +43,9 @@ class TopicStats:
     bytes: int = 0  #: payload bytes written
     receive_time_logs: int = 0  #: messages logged at their receive time (no usable stamp)
     malformed: int = 0  #: payloads shorter than their CDR content says (kept as received)
+    first_log_ns: int = 0  #: log time of the first message
+    first_receive_ns: int = 0  #: receive time of the first message
+    last_log_ns: int = 0  #: log time of the last message
 
 
 class Recording:
@@ -99,11 +102,11 @@ class Recording:
         use_stamp = self.log_time == "header" and inspector.has_stamp
         strip = inspector.strip if inspector.may_be_padded else None
         stamp_ns = inspector.stamp_ns
-        conn = None
+        write = None
         recording = self
 
         def record(payload: bytes | memoryview, receive_ns: int) -> None:
-            nonlocal conn
+            nonlocal write
             if recording.first_receive_ns is None:
                 recording.first_receive_ns = receive_ns
             recording.last_receive_ns = receive_ns
@@ -121,9 +124,11 @@ class Recording:
             if t is None:
                 t = receive_ns
                 stats.receive_time_logs += 1
-            if conn is None:
-                conn = writer.add_topic(topic, msgtype, list(qos()) or None)
-            writer.write_connection(conn, t, payload)
+            if write is None:
+                write = writer.sink(writer.add_topic(topic, msgtype, list(qos()) or None))
+                stats.first_log_ns, stats.first_receive_ns = t, receive_ns
+            write(t, payload)
+            stats.last_log_ns = t
             stats.count += 1
             stats.bytes += len(payload)
 
@@ -135,6 +140,21 @@ class Recording:
         if self.first_receive_ns is None or self.last_receive_ns is None:
             return 0.0
         return (self.last_receive_ns - self.first_receive_ns) * 1e-9
+
+    def lags_s(self, now_ns: int) -> dict[str, float]:
+        """Seconds each topic's data is behind the wall clock, for a real-time recording:
+        wall time since the first message minus data (log) time since it, the first message
+        being that of the earliest topic with more than one message. Empty before that."""
+        started = [s for s in self.stats.values() if s.count > 1]
+        if not started:
+            return {}
+        first = min(started, key=lambda s: s.first_receive_ns)
+        wall = now_ns - first.first_receive_ns
+        return {
+            s.topic: (wall - (s.last_log_ns - first.first_log_ns)) * 1e-9
+            for s in self.stats.values()
+            if s.count
+        }
 
     @property
     def message_count(self) -> int:

@@ -63,6 +63,11 @@ NODE_NAME = "bag_recorder"
 RELIABILITIES = ("auto", "reliable", "best_effort")
 #: After a stop request: spin until a pass brings no message (but at most drain_timeout_s).
 QUIET_S = 0.05
+#: Seconds between looks at the publishers once every topic is subscribed (only new
+#: publishers' QoS is checked then; each look asks the graph about every topic).
+SETTLED_DISCOVERY_S = 2.0
+#: Seconds between the looks at how far behind the wall clock the topics are (lag_warning_s).
+LAG_EVERY_S = 1.0
 #: Messages "taken" reported for a topic the recorder does not record (flow control).
 NOT_HELD_BACK = 1 << 60
 
@@ -116,6 +121,10 @@ class BagRecorder(SignalStop, Node):
         self.progress_period_s = declare_number(
             self, "progress_period_s", 10.0, "seconds between progress lines; 0 = none"
         )
+        self.lag_warning_s = declare_number(
+            self, "lag_warning_s", 0.0,
+            "real-time runs: warn when a topic's data is this far behind the wall clock; 0 = off",
+        )  # fmt: skip
         self.drain_timeout_s = declare_number(
             self, "drain_timeout_s", 2.0, "at a stop, longest time taking queued messages"
         )
@@ -134,6 +143,7 @@ class BagRecorder(SignalStop, Node):
         for name, value in (
             ("max_duration_s", self.max_duration_s),
             ("progress_period_s", self.progress_period_s),
+            ("lag_warning_s", self.lag_warning_s),
             ("drain_timeout_s", self.drain_timeout_s),
         ):
             if value < 0:
@@ -400,7 +410,7 @@ class BagRecorder(SignalStop, Node):
     def _record(self, executor, start: float) -> int:
         recording = self.recording
         assert recording is not None
-        next_discovery = next_progress = time.monotonic()
+        next_discovery = next_progress = next_settled = next_lag = time.monotonic()
         reporter = None
         if self.report_progress:
             from strapdown_ros.nodes.flow import ProgressReporter
@@ -419,10 +429,16 @@ class BagRecorder(SignalStop, Node):
                 reporter.maybe_report(now)
             if now >= next_discovery:
                 self._sim_time[0] = self.get_clock().ros_time_is_active
-                self._discover()
+                if now >= next_settled:
+                    self._discover()
+                    if all(t.subscription is not None for t in self.topics.values()):
+                        next_settled = now + max(SETTLED_DISCOVERY_S, self.discovery_period_s)
                 next_discovery = now + self.discovery_period_s
                 if self.stop_when_done and self._publishers_gone():
                     self._stop_reason = "every publisher is gone"
+            if self.lag_warning_s > 0 and now >= next_lag:
+                next_lag = now + LAG_EVERY_S
+                self._warn_lag()
             if self.progress_period_s > 0 and now >= next_progress:
                 if now > start:
                     self._log_progress()
@@ -437,6 +453,21 @@ class BagRecorder(SignalStop, Node):
             if recording.message_count == before:
                 break
         return EXIT_OK
+
+    def _warn_lag(self) -> None:
+        """Log the topics whose data is more than ``lag_warning_s`` behind the wall clock
+        (real-time runs; only while messages still arrive: not after the end of the data)."""
+        rec = self.recording
+        assert rec is not None
+        now = self.get_clock().now().nanoseconds if self._sim_time[0] else time.time_ns()
+        if rec.last_receive_ns is None or now - rec.last_receive_ns > LAG_EVERY_S * 1e9:
+            return
+        late = {t: s for t, s in rec.lags_s(now).items() if s > self.lag_warning_s}
+        if late:
+            self.get_logger().warning(
+                "behind real time: "
+                + ", ".join(f"{t} {s:.2f} s" for t, s in sorted(late.items(), key=lambda x: -x[1]))
+            )
 
     def _log_progress(self) -> None:
         rec = self.recording

@@ -70,6 +70,10 @@ GRACE_S = 0.5
 SPIN_EVERY_S = 0.05
 #: The same under flow control: the consumers' reports are taken at least this often.
 FLOW_SPIN_EVERY_S = 0.005
+#: Paced runs: say so while publishing when a message goes out this late, at most every
+#: LATE_EVERY_S (``strapdown-sim run`` relays the line).
+LATE_WARNING_S = 0.5
+LATE_EVERY_S = 2.0
 
 
 class _Pieces:
@@ -251,6 +255,8 @@ class TrajectoryNode(Node):
             spin_every = SPIN_EVERY_S if gate is None else FLOW_SPIN_EVERY_S
             wall_start = time.monotonic()
             t_first = t_last = 0
+            next_late = 0.0
+            self.get_logger().info("publishing")
             while (item := pieces.get(spin)) is not None:
                 _, batches = item
                 for b in batches:
@@ -276,6 +282,12 @@ class TrajectoryNode(Node):
                     t_last = stamp
                     if time.monotonic() - last_spin[0] > spin_every:
                         spin(0.0)
+                        if paced and errors[-1] > LATE_WARNING_S and last_spin[0] > next_late:
+                            next_late = last_spin[0] + LATE_EVERY_S
+                            self.get_logger().warning(
+                                f"behind real time: publishing {errors[-1]:.2f} s late "
+                                f"({(stamp - t_first) * 1e-9:.1f} s of data published)"
+                            )
             elapsed = time.monotonic() - wall_start
             self._log_summary(elapsed, (t_last - t_first) * 1e-9, pacer)
             self._drain(spin)

@@ -237,6 +237,11 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("max_duration_s", 0.0, "stop after this many seconds; 0 = until a signal"),
         ("stop_when_done", False, "stop when every recorded topic lost its publishers"),
         ("progress_period_s", 10.0, "seconds between progress lines; 0 = none"),
+        (
+            "lag_warning_s",
+            0.0,
+            "real-time runs: warn when a topic's data is this far behind the wall clock; 0 = off",
+        ),
         ("drain_timeout_s", 2.0, "at a stop, longest time taking queued messages"),
         (
             "report_progress",

@@ -160,6 +160,20 @@ class Children:
         """CPU seconds of each child that has exited (start-up included)."""
         return {c.name: c.cpu_s for c in self.started if c.cpu_s is not None}
 
+    def cpu_now(self) -> dict[str, float]:
+        """CPU seconds (user + system) so far of each running child (Linux ``/proc``; empty
+        elsewhere)."""
+        out = {}
+        tick = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+        for c in self.started:
+            try:
+                stat = Path(f"/proc/{c.proc.pid}/stat").read_text()
+            except OSError:
+                continue
+            fields = stat[stat.rindex(")") + 2 :].split()  # after "pid (comm) "
+            out[c.name] = (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+        return out
+
     def stop_all(self) -> None:
         """SIGTERM to every child, SIGKILL to those still running after STOP_GRACE_S."""
         for c in self.started:

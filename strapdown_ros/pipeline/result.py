@@ -32,6 +32,14 @@ class PipelineResult:
     pacing: str = ""
     #: CPU seconds (user + system) of each child process, start-up included.
     cpu_s: dict[str, float] = field(default_factory=dict)
+    #: CPU seconds of each child when the source started publishing (its start-up; Linux).
+    cpu_start_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def cpu_run_s(self) -> dict[str, float]:
+        """CPU seconds of each child from the start of publishing to its exit (start-up
+        excluded; :attr:`cpu_s` where the start is not known)."""
+        return {n: s - self.cpu_start_s.get(n, 0.0) for n, s in self.cpu_s.items()}
 
     @property
     def lost(self) -> dict[str, int]:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from strapdown_ros.bag.selection import TopicSelection
 from strapdown_ros.config import ScenarioError, load_scenario
+from strapdown_ros.pipeline.lag import LagWatch
 from strapdown_ros.pipeline.processes import (
     STOP_GRACE_S,
     Child,
@@ -32,6 +33,8 @@ __all__ = ["RECORDER_GRACE_S", "STARTUP_TIMEOUT_S", "run_pipeline", "say_to_stde
 
 #: Seconds a node may take to start and subscribe.
 STARTUP_TIMEOUT_S = 60.0
+#: Real-time runs: the recorder warns when a topic's data is this far behind the wall clock.
+LAG_WARNING_S = 1.0
 #: Seconds the recorder may take to notice that every publisher is gone.
 RECORDER_GRACE_S = 30.0
 
@@ -126,12 +129,17 @@ class _LiveRun:
     say: Callable[[str], None]
     #: Topic → the subscriptions it will have (the recorder's and the nodes reading it).
     subscriptions: dict[str, int] = field(default_factory=dict)
+    #: The chain's nodes (source first).
+    nodes: list = field(default_factory=list)
+    #: CPU seconds of each child when the source starts publishing (start-up done).
+    cpu_start: dict[str, float] = field(default_factory=dict)
 
     def start(self) -> Child:
         """Start the recorder, then the chain's nodes downstream first (each waits for its
         subscribers before it subscribes), the source (first in chain order) last; return the
         source."""
         nodes, self.subscriptions = live_graph(self.plan)
+        self.nodes = list(nodes)
         selection = TopicSelection.of_recording(self.plan.scenario.recording)
         for topic in self.subscriptions:  # the recorder subscribes to the selected ones only
             if topic in self.plan.topics and not selection.selects(topic):
@@ -157,6 +165,8 @@ class _LiveRun:
         params = [f"output:={self.out}", "stop_when_done:=true", f"force:={force}"]
         if self.flow_control:
             params.append("report_progress:=true")
+        elif self.rate_factor == 1:  # real time: say while running which topics fall behind
+            params.append(f"lag_warning_s:={LAG_WARNING_S}")
         if self.storage:
             params.append(f"storage:={self.storage}")
         return params
@@ -184,6 +194,7 @@ class _LiveRun:
         if it has not); PipelineError when a child fails or ``timeout_s`` passes."""
         deadline = time.monotonic() + timeout_s
         recorder, children = self.children.started[0], self.children.started
+        lag = LagWatch(recorder.log_path, source.log_path, self.nodes, say_to_stderr("run", True))
         done_at: float | None = None
         interrupted = False
         while True:
@@ -200,6 +211,9 @@ class _LiveRun:
                     self.say("recorder still running after the producers finished; sending SIGTERM")
                     recorder.stop()
                     interrupted = True
+            if not self.cpu_start and "publishing" in source.log:
+                self.cpu_start = self.children.cpu_now()
+            lag.poll()
             if time.monotonic() > deadline:
                 raise PipelineError(
                     f"the pipeline did not finish within {timeout_s:g} s", recorder.log
@@ -229,6 +243,7 @@ class _LiveRun:
             rate_factor=self.rate_factor,
             flow_control=self.flow_control,
             cpu_s=cpu,
+            cpu_start_s=dict(self.cpu_start),
         )
         read_trajectory_summary(self.children.log_dir / "trajectory_node.log", result)
         return result
