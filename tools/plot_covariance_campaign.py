@@ -1,13 +1,17 @@
 """Covariance prediction against a campaign's ensemble: table and figure.
 
 Usage: python tools/plot_covariance_campaign.py CAMPAIGN_DIR BAG OUT_PREFIX [--every K]
+       [--realized] [--skip S]
 
 CAMPAIGN_DIR: a ``strapdown-sim campaign`` output; BAG: the campaign's scenario generated once
 (``strapdown-sim generate SCENARIO --out BAG --set <the campaign's common overrides>``), from
 which the truth and the ideal IMU increments are read. Writes OUT_PREFIX.md (the χ² table,
 strapdown_ros.analysis.covariance_check) and OUT_PREFIX.png: per component the ensemble's runs,
 the predicted mean ± 1σ and ± 3σ, and the ratio σ_ens / σ_pred with the χ²(N) 95 % band.
-``--every K``: propagate with steps of K navigator periods (default 1).
+``--every K``: propagate with steps of K navigator periods (default 1). ``--realized``: also
+the prediction started from the campaign's drawn constants (covariance_check.
+realized_initial_covariance), written as OUT_PREFIX_realized.md/.png. ``--skip S``: epochs
+compared from S s on (default 60).
 """
 
 from __future__ import annotations
@@ -67,22 +71,35 @@ def main(argv: list[str]) -> int:
         print(__doc__, file=sys.stderr)
         return 2
     every = int(argv[argv.index("--every") + 1]) if "--every" in argv else 1
+    skip = float(argv[argv.index("--skip") + 1]) if "--skip" in argv else 60.0
     out, bag, prefix = Path(argv[0]), Path(argv[1]), Path(argv[2])
-    start = time.perf_counter()
-    prediction = cc.predict_scenario(cc.campaign_scenario(out), bag, steps_per_output=every)
-    elapsed = time.perf_counter() - start
+    scenario = cc.campaign_scenario(out)
     ensemble = cc.read_ensemble(out)
-    checks, series = cc.compare_ensemble(prediction, ensemble)
     n = ensemble.errors.shape[0]
-    table = cc.checks_table(checks, n)
-    text = (f"{table}\n\nprediction: {prediction.stamps_ns.shape[0] - 1} steps in {elapsed:.1f} s;"
-            f" command: python tools/plot_covariance_campaign.py {' '.join(argv)}\n")
+    variants = [(prefix, None, "population (the error model's variances)")]
+    if "--realized" in argv:
+        from strapdown_ros.campaign.results import finished_runs
+
+        assert scenario.imu_errors is not None
+        seeds = cc.campaign_seeds(out, sorted(finished_runs(out)))
+        cov0 = cc.realized_initial_covariance(scenario.imu_errors.parameters(), seeds)
+        variants.append((prefix.with_name(prefix.name + "_realized"), cov0,
+                         "started from the campaign's drawn constants"))  # fmt: skip
     prefix.parent.mkdir(parents=True, exist_ok=True)
-    prefix.with_suffix(".md").write_text(text, encoding="utf-8")
-    _, i_pred, i_ens = np.intersect1d(prediction.stamps_ns, ensemble.stamps_ns,
-                                      return_indices=True)
-    plot(series, ensemble.errors[:, i_ens], n, prefix.with_suffix(".png"))
-    print(text)
+    for path, cov0, what in variants:
+        start = time.perf_counter()
+        prediction = cc.predict_scenario(scenario, bag, steps_per_output=every, cov0=cov0)
+        elapsed = time.perf_counter() - start
+        checks, series = cc.compare_ensemble(prediction, ensemble, skip_s=skip)
+        table = cc.checks_table(checks, n)
+        text = (f"prediction {what}; epochs from {skip:g} s\n\n{table}\n\nprediction: "
+                f"{prediction.stamps_ns.shape[0] - 1} steps in {elapsed:.1f} s; command: "
+                f"python tools/plot_covariance_campaign.py {' '.join(argv)}\n")  # fmt: skip
+        path.with_suffix(".md").write_text(text, encoding="utf-8")
+        _, i_pred, i_ens = np.intersect1d(prediction.stamps_ns, ensemble.stamps_ns,
+                                          return_indices=True)  # fmt: skip
+        plot(series, ensemble.errors[:, i_ens], n, path.with_suffix(".png"))
+        print(text)
     return 0
 
 
