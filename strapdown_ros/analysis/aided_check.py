@@ -100,8 +100,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     import argparse
     import time
 
-    from strapdown_ros.config.scenario import apply_overrides, parse_scenario, read_document
-    from strapdown_ros.stages.aided_montecarlo import modelled_only, monte_carlo
+    from strapdown_ros.config.scenario import apply_overrides, parse_scenario
+    from strapdown_ros.stages.aided_montecarlo import campaign_document, monte_carlo
 
     ap = argparse.ArgumentParser(prog="python -m strapdown_ros.analysis.aided_check",
                                  description=__doc__.splitlines()[0])  # fmt: skip
@@ -117,12 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--dir", type=Path, required=True,
                     help="the runs' bags (kept; runs already there are read, not rerun)")
     args = ap.parse_args(argv)
-    doc = read_document(args.scenario)
-    if args.modelled_only:
-        doc = modelled_only(doc)
-    overrides = list(args.overrides)
-    if args.duration is not None:
-        overrides.append(f"duration_s={args.duration:g}")
+    doc, overrides = campaign_document(args.scenario, args.modelled_only, args.overrides,
+                                       args.duration)  # fmt: skip
     scenario = parse_scenario(apply_overrides(doc, overrides))
     start = time.perf_counter()
     if not all((args.dir / f"run_{k:03d}").is_dir() for k in range(args.runs)):

@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from strapdown_ros.bag.batches import Batch
 from strapdown_ros.config import Scenario
-from strapdown_ros.config.scenario import apply_overrides, parse_scenario
+from strapdown_ros.config.scenario import apply_overrides, parse_scenario, read_document
 from strapdown_ros.core.aided.consistency import Inside, fraction_inside, normalized_squares
 from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic
 from strapdown_ros.core.imu_errors import ImuErrorModel, ImuErrorParameters, SensorErrors
@@ -112,6 +112,18 @@ def modelled_only(document: dict[str, Any]) -> dict[str, Any]:
     if isinstance(aiding.get("magnetometer"), dict):
         aiding["magnetometer"].pop("soft_iron", None)
     return doc
+
+
+def campaign_document(path: Path, modelled: bool, overrides: Sequence[str],
+                      duration_s: float | None) -> tuple[dict[str, Any], list[str]]:
+    """A campaign's scenario document (``modelled_only`` if asked) and its ``--set`` overrides,
+    ``duration_s`` appended when given: what the command lines of this module and
+    ``analysis.aided_check`` share."""
+    doc = read_document(path)
+    if modelled:
+        doc = modelled_only(doc)
+    extra = [f"duration_s={duration_s:g}"] if duration_s is not None else []
+    return doc, [*overrides, *extra]
 
 
 def seed_overrides(document: dict[str, Any], run: int, base_seed: int = 0) -> list[str]:
@@ -413,8 +425,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     import tempfile
     import time
 
-    from strapdown_ros.config.scenario import read_document
-
     ap = argparse.ArgumentParser(prog="python -m strapdown_ros.stages.aided_montecarlo",
                                  description="Monte Carlo runs of the aided filter")  # fmt: skip
     ap.add_argument("scenario", type=Path)
@@ -431,12 +441,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--dir", type=Path, default=None, help="where the run bags go (temporary)")
     args = ap.parse_args(argv)
-    doc = read_document(args.scenario)
-    if args.modelled_only:
-        doc = modelled_only(doc)
-    overrides = list(args.overrides)
-    if args.duration is not None:
-        overrides.append(f"duration_s={args.duration:g}")
+    doc, overrides = campaign_document(args.scenario, args.modelled_only, args.overrides,
+                                       args.duration)  # fmt: skip
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         results = monte_carlo(doc, args.runs, Path(tmp), args.seed, overrides, args.workers)
