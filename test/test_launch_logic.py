@@ -28,6 +28,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from launch_standin import LAUNCH_API_CLASSES
 
 from strapdown_ros import launch_logic
 from strapdown_ros.config import ScenarioError, load_scenario
@@ -288,27 +289,7 @@ def test_planner_with_noble_pydantic_names_the_fix(tmp_path, monkeypatch) -> Non
 #: A stand-in of the parts of launch / launch_ros that pipeline.launch.py uses (exec'd here and in
 #: child processes): actions record their arguments; a context is a dict of the launch arguments
 #: and "_prefix" (what FindPackagePrefix finds).
-FAKE_LAUNCH = """
-import sys, types
-
-class _Action:
-    def __init__(self, *args, **kwargs):
-        self.args, self.kwargs = args, kwargs
-
-class LaunchConfiguration:
-    def __init__(self, name):
-        self.name = name
-
-    def perform(self, context):
-        return context[self.name]
-
-class FindPackagePrefix:
-    def __init__(self, package):
-        assert package == "strapdown_ros"
-
-    def perform(self, context):
-        return context["_prefix"]
-
+FAKE_LAUNCH = LAUNCH_API_CLASSES + """
 mods = {n: types.ModuleType(n) for n in (
     "launch", "launch.actions", "launch.event_handlers", "launch.substitutions",
     "launch_ros", "launch_ros.actions", "launch_ros.substitutions")}

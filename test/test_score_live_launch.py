@@ -19,6 +19,7 @@ import types
 from pathlib import Path
 
 import pytest
+from launch_standin import LAUNCH_API_CLASSES
 
 from strapdown_ros.launch_logic import LaunchError, NodeFailedError
 from strapdown_ros.score.live_launch import LiveSequence, Step, plan_score_live
@@ -27,27 +28,7 @@ REPO = Path(__file__).resolve().parent.parent
 LAUNCH = REPO / "launch" / "score_live.launch.py"
 TOPIC = "/my_filter/odom"
 
-FAKE_LAUNCH = """
-import types
-
-class _Action:
-    def __init__(self, *args, **kwargs):
-        self.args, self.kwargs = args, kwargs
-
-class LaunchConfiguration:
-    def __init__(self, name):
-        self.name = name
-
-    def perform(self, context):
-        return context[self.name]
-
-class FindPackagePrefix:
-    def __init__(self, package):
-        assert package == "strapdown_ros"
-
-    def perform(self, context):
-        return context["_prefix"]
-
+FAKE_LAUNCH = LAUNCH_API_CLASSES + """
 def matches_action(action):
     return ("matches", action)
 
