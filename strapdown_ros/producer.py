@@ -188,6 +188,9 @@ def _die_with_parent(parent: int, spool: Path) -> None:
         os._exit(128 + signum)
 
     signal.signal(signal.SIGTERM, stop)
+    # SIGTERM was blocked across the fork (Producer.__init__): one sent before this point
+    # (close() right after start) is delivered now, to this handler, not to the parent's
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
@@ -239,10 +242,17 @@ class Producer:
                 target=_produce, args=(items, self._queue, self._spool, os.getpid()),
                 daemon=True,
             )
+            # the child starts with the parent's handlers (a CLI's raises Stopped): SIGTERM is
+            # held until the worker has its own (_die_with_parent), so no traceback is printed
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
+            try:
+                self._worker.start()
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
         else:
             self._queue = queue.Queue(maxsize=depth)
             self._worker = threading.Thread(target=_produce, args=(items, self._queue), daemon=True)
-        self._worker.start()
+            self._worker.start()
 
     def __iter__(self) -> Iterator[Piece]:
         while True:

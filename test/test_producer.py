@@ -31,10 +31,12 @@ def _piece(k: int) -> Piece:
 
 
 def _spool_dirs() -> set[str]:
+    """This process's spool directories (other test workers may run a generate meanwhile)."""
     roots = [Path("/dev/shm"), Path(os.environ.get("TMPDIR", "/tmp"))]  # noqa: S108
     return {
-        str(p) for r in roots if r.is_dir() for p in r.glob("strapdown-generate-*")
-    }
+        str(p) for r in roots if r.is_dir()
+        for p in r.glob(f"strapdown-generate-{os.getpid()}-*")
+    }  # fmt: skip
 
 
 def test_pieces_arrive_equal() -> None:
@@ -120,3 +122,34 @@ def test_spool_of_a_killed_generate_is_removed(tmp_path: Path) -> None:
         (d / "piece0.bin").write_bytes(b"x" * 10)
     producer._remove_stale_spools(tmp_path)
     assert not stale.exists() and alive.exists()
+
+
+_STOPPED_AT_ONCE = """
+import os, signal, sys, time
+from strapdown_ros.producer import Producer
+
+class Stopped(KeyboardInterrupt):
+    pass
+
+def stop(signum, frame):  # a command's handler, as strapdown_ros.cli installs it
+    raise Stopped(signum)
+
+signal.signal(signal.SIGTERM, stop)
+os.register_at_fork(after_in_child=lambda: time.sleep(0.3))  # widen the fork's window
+p = Producer(iter([]))
+p.close()  # SIGTERM reaches the child before it has its own handler
+print("closed", p._worker.exitcode)
+"""
+
+
+def test_a_worker_stopped_right_after_the_fork_prints_no_traceback() -> None:
+    """Why: a generate stopped at once (read-only destination) printed the worker's traceback
+    ``Process ForkProcess-1: ... Stopped: SIGTERM``: the child ran the parent's handler."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", _STOPPED_AT_ONCE], capture_output=True,
+                          text=True, timeout=60)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr and "Stopped" not in proc.stderr, proc.stderr
+    assert proc.stdout.split() == ["closed", str(128 + 15)]
