@@ -37,10 +37,19 @@ from strapdown_ros.pipeline import PROFILE_ENV
 
 SCENARIO = Path(__file__).resolve().parents[1] / "config" / "scenarios" / "default.yaml"
 TARGET_HZ = 1000.0
-NODES = (
-    "trajectory_node", "variation_node", "imu_model_node", "navigator_node", "aiding_node",
-    "bag_recorder",
-)  # fmt: skip
+
+
+def live_nodes(scenario: Path) -> tuple[str, ...]:
+    """The executables ``run`` starts for ``scenario`` (the chain's live graph), recorder last."""
+    from strapdown_ros.config import load_scenario
+    from strapdown_ros.plan import resolve_plan
+    from strapdown_ros.plan.chain import live_graph
+
+    nodes, _ = live_graph(resolve_plan(load_scenario(scenario)))
+    return (*(n.executable for n in nodes), "bag_recorder")
+
+
+NODES = live_nodes(SCENARIO)
 
 
 def _uptime() -> str:

@@ -28,16 +28,12 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench_live import live_nodes  # bench/ is the script's directory
+
 REPO = Path(__file__).resolve().parents[1]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-NODES = (
-    "trajectory_node",
-    "variation_node",
-    "imu_model_node",
-    "navigator_node",
-    "aiding_node",
-    "bag_recorder",
-)
+
+NODES = live_nodes(SCENARIO)  # the nodes `run` starts for it
 #: Seconds a start may take before the bench gives up on it.
 TIMEOUT_S = 60.0
 
