@@ -172,9 +172,12 @@ class NavigatorSpec(Model):
         """Initial roll, pitch, heading offsets (rad)."""
         return np.radians(np.array(self.initial_errors.attitude_rph_deg))
 
-    def _resolve(self, topics: Mapping[str, str], gravity_model: str) -> NavigatorSpec:
+    def _resolve(
+        self, topics: Mapping[str, str], gravity_model: str,
+        measured: tuple[str, str] | None = None,
+    ) -> NavigatorSpec:  # fmt: skip
         imu = self.imu_topic or topics.get("variation_imu", "/variation/imu")
-        key = topic_key(topics, imu)
+        key = stream_key(topics, imu, measured)
         default_truth = topics.get(INPUT_STREAMS[key][0], "") if key in INPUT_STREAMS else ""
         truth = default_truth if self.truth_topic is None else self.truth_topic
         if self.initialization == "truth" and not truth:
@@ -208,11 +211,29 @@ def topic_key(topics: Mapping[str, str], name: str) -> str | None:
     return None
 
 
+def stream_key(
+    topics: Mapping[str, str], imu: str, measured: tuple[str, str] | None = None
+) -> str | None:
+    """The :data:`INPUT_STREAMS` key of the IMU topic ``imu``: its ``recording.topics`` key, or,
+    for the IMU error model's output (``measured`` = its input and output topics, whatever
+    their names), ``variation_imu_measured`` when it measures the variation IMU and else the
+    key of the ideal IMU it measures. None: not an IMU stream (the error model's default
+    output name when the model writes elsewhere included)."""
+    if measured is not None and imu == measured[1]:
+        source = topic_key(topics, measured[0])
+        return "variation_imu_measured" if source == "variation_imu" else source
+    key = topic_key(topics, imu)
+    if measured is not None and key == "variation_imu_measured":
+        return None  # the model writes another topic: nothing produces this one
+    return key
+
+
 def resolve_navigator(
     spec: NavigatorSpec,
     topics: Mapping[str, str],
     gravity_model: str,
     sections: Collection[str] | None = None,
+    measured: tuple[str, str] | None = None,
 ) -> NavigatorSpec:
     """``spec`` with its scenario-dependent defaults filled in, checked against the scenario.
 
@@ -229,6 +250,10 @@ def resolve_navigator(
         ``variation``, ``imu_errors``, ...). Given, the input must be one of the scenario's IMU
         streams (with the section that stream needs) and ``initialization: scenario`` needs
         ``initial``. None: not checked (``navigator_node`` without a scenario).
+    measured : (str, str), optional
+        The IMU error model's input and output topics (``ImuErrorsSpec.topics``), when the
+        scenario has one: its output is an IMU stream whatever its name (truth: that of its
+        input) and the default name is none when the model writes elsewhere.
 
     Raises
     ------
@@ -237,9 +262,13 @@ def resolve_navigator(
     """
     if sections is not None:
         imu = spec.imu_topic or topics["variation_imu"]
-        key = topic_key(topics, imu)
+        key = stream_key(topics, imu, measured)
         if key not in INPUT_STREAMS:
-            names = ", ".join(topics[k] for k in INPUT_STREAMS if k in topics)
+            streams = [topics[k] for k in INPUT_STREAMS if k in topics]
+            if measured is not None:
+                streams = [t for t in streams if stream_key(topics, t, measured)]
+                streams += [] if measured[1] in streams else [measured[1]]
+            names = ", ".join(streams)
             raise ScenarioError(
                 "navigator.imu_topic", f"{shorten(imu)} is not an IMU stream; one of: {names}"
             )
@@ -248,7 +277,7 @@ def resolve_navigator(
             raise ScenarioError(
                 "navigator.imu_topic", f"{shorten(imu)} needs a '{needs}' section in the scenario"
             )
-    resolved = spec._resolve(topics, gravity_model)
+    resolved = spec._resolve(topics, gravity_model, measured)
     if sections is not None and resolved.initialization == "scenario" and "initial" not in sections:
         raise ScenarioError(
             "navigator.initialization", "'scenario' needs the scenario's 'initial' state"

@@ -343,8 +343,10 @@ def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:
     """The scenario's ``navigator`` section, resolved (None without one)."""
     if scenario.navigator is None:
         return None
+    topics = scenario.recording.topics
+    measured = None if scenario.imu_errors is None else scenario.imu_errors.topics(topics)
     return resolve_navigator(
-        scenario.navigator, scenario.recording.topics, scenario.gravity_model, scenario.sections()
+        scenario.navigator, topics, scenario.gravity_model, scenario.sections(), measured
     )
 
 
