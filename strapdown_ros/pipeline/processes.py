@@ -149,12 +149,13 @@ class Children:
         self.started.append(child)
         return child
 
-    def check(self) -> None:
-        """PipelineError (with its log) if a child has exited with a non-zero status."""
+    def check(self, when: str = "") -> None:
+        """PipelineError (with its log) if a child has exited with a non-zero status; ``when``
+        is added to the message (e.g. " after the recording ended")."""
         for c in self.started:
             code = c.poll()
             if code is not None and code != 0:
-                raise PipelineError(f"{c.name} exited with status {code}", c.log)
+                raise PipelineError(f"{c.name} exited with status {code}{when}", c.log)
 
     def cpu_s(self) -> dict[str, float]:
         """CPU seconds of each child that has exited (start-up included)."""

@@ -225,13 +225,8 @@ class _LiveRun:
         end = time.monotonic() + STOP_GRACE_S
         while any(c.poll() is None for c in children) and time.monotonic() < end:
             time.sleep(0.05)
-        for c in children:  # a node that failed in its teardown (e.g. its summary) is a failure
-            code = c.poll()
-            if code is not None and code != 0:
-                raise PipelineError(
-                    f"{c.name} exited with status {code} after the recording ended "
-                    f"(the bag at {self.out} is complete)", c.log,
-                )  # fmt: skip
+        # a node that failed in its teardown (e.g. its summary) fails the run
+        self.children.check(f" after the recording ended (the bag at {self.out} is complete)")
 
     def result(self, t_start: float, domain: int, cpu: dict[str, float]) -> PipelineResult:
         """The recorded counts read back from the bag, with the trajectory node's summary."""
