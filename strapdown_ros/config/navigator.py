@@ -267,7 +267,8 @@ def resolve_navigator(
             streams = [topics[k] for k in INPUT_STREAMS if k in topics]
             if measured is not None:
                 streams = [t for t in streams if stream_key(topics, t, measured)]
-                streams += [] if measured[1] in streams else [measured[1]]
+                if measured[1] not in streams:
+                    streams.append(measured[1])
             names = ", ".join(streams)
             raise ScenarioError(
                 "navigator.imu_topic", f"{shorten(imu)} is not an IMU stream; one of: {names}"

@@ -306,14 +306,14 @@ class Scenario(Model):
         check_aided(
             self.aided,
             topics=topics,
-            measured=None if self.imu_errors is None else self.imu_errors.topics(topics),
+            measured=self.measured_imu_topics(),
             aiding=self.aiding,
             period_ns=self.period_ns,
         )
         check_transfer(
             self.transfer_alignment,
             topics=topics,
-            measured=None if self.imu_errors is None else self.imu_errors.topics(topics),
+            measured=self.measured_imu_topics(),
             variation=self.variation,
             period_ns=self.period_ns,
         )
@@ -331,6 +331,12 @@ class Scenario(Model):
         check_timing(self.timing, set(self.aiding.sensors()) if self.aiding is not None else set())
         return self
 
+    def measured_imu_topics(self) -> tuple[str, str] | None:
+        """``(input, output)`` topics of the IMU error model (None without ``imu_errors``)."""
+        if self.imu_errors is None:
+            return None
+        return self.imu_errors.topics(self.recording.topics)
+
     def sections(self) -> frozenset[str]:
         """Names of the optional parts the scenario has (``initial``, ``variation``,
         ``navigator``, ``imu_errors``, ``tf``, ``aiding``): what the cross-section rules of
@@ -343,11 +349,10 @@ def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:
     """The scenario's ``navigator`` section, resolved (None without one)."""
     if scenario.navigator is None:
         return None
-    topics = scenario.recording.topics
-    measured = None if scenario.imu_errors is None else scenario.imu_errors.topics(topics)
     return resolve_navigator(
-        scenario.navigator, topics, scenario.gravity_model, scenario.sections(), measured
-    )
+        scenario.navigator, scenario.recording.topics, scenario.gravity_model,
+        scenario.sections(), scenario.measured_imu_topics(),
+    )  # fmt: skip
 
 
 def tf_spec(scenario: Scenario) -> TFSpec:

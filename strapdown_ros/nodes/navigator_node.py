@@ -62,9 +62,7 @@ def navigator_section(scenario: Scenario | None, overrides: dict[str, Any]) -> N
     try:
         spec = validate_section(NavigatorSpec, section, "navigator")
         sections = None if scenario is None else scenario.sections()
-        measured = None
-        if scenario is not None and scenario.imu_errors is not None:
-            measured = scenario.imu_errors.topics(topics)
+        measured = None if scenario is None else scenario.measured_imu_topics()
         spec = resolve_navigator(spec, topics, gravity, sections, measured)
     except ScenarioError as exc:
         key = exc.key.removeprefix("navigator.")

@@ -53,8 +53,7 @@ def resolve_plan(
         natural_duration_s=natural,
         navigator=navigator_spec(scenario),
         imu_errors=imu_errors,
-        imu_errors_topics=None if imu_errors is None else imu_errors.topics(
-            scenario.recording.topics),
+        imu_errors_topics=scenario.measured_imu_topics(),
         aiding=aiding,
         tf=tf_spec(scenario),
         samples=samples,
