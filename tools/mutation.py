@@ -48,7 +48,11 @@ TESTS: dict[str, list[str]] = {
         "test/test_method2.py",
         "test/test_exact_update_mutants.py",
     ],
-    "core/imu_errors.py": ["test/test_imu_errors.py", "test/test_covariance.py"],
+    "core/imu_errors.py": [
+        "test/test_imu_errors.py",
+        "test/test_covariance.py",
+        "test/test_imu_errors_mutants.py",
+    ],
     "core/frames.py": ["test/test_frames.py", "test/test_tf.py", "test/test_frames_mutants.py"],
     "core/allan.py": ["test/test_imu_errors.py", "test/test_allan_closed_forms.py"],
     "core/aiding/gnss.py": ["test/test_aiding_models.py", "test/test_aided_models.py"],
