@@ -134,3 +134,29 @@ def test_increments_of_other_shapes_are_refused(da, dv):
     m = ImuErrorModel(ImuErrorParameters.perfect(), T)
     with pytest.raises(ValueError, match=r"^dalpha and dv must both have shape \(n, 3\), got "):
         m.apply(np.zeros(da), np.zeros(dv))
+
+
+@pytest.mark.parametrize("period", [0.0, -0.01, math.inf, math.nan])
+def test_period_must_be_finite_and_positive(period):
+    with pytest.raises(ValueError, match=r"^period_s must be finite and > 0, got "):
+        ImuErrorModel(ImuErrorParameters.perfect(), period)
+
+
+def test_misalignment_matrix_needs_six_values():
+    from strapdown_ros.core.imu_errors import misalignment_matrix
+
+    with pytest.raises(ValueError, match=r"^expected 6 values, got shape \(5,\)$"):
+        misalignment_matrix(np.zeros(5))
+
+
+def test_range_below_one_saturates_only_its_axis():
+    """x axis limited to 0.5 rad/s, y and z unlimited (range 0): 2 rad/s in on every axis."""
+    p = _gyro(range=np.array([0.5, 0.0, 0.0]))
+    out, _ = ImuErrorModel(p, T).apply(np.full((2, 3), 2.0 * T), np.zeros((2, 3)))
+    np.testing.assert_allclose(out, np.tile([0.5 * T, 2.0 * T, 2.0 * T], (2, 1)), rtol=1e-15)
+
+
+def test_gauss_markov_on_one_axis_leaves_the_others_exact():
+    p = _gyro(bias_instability=np.array([1e-4, 0.0, 0.0]), correlation_time_s=np.ones(3))
+    out, _ = ImuErrorModel(p, T).apply(np.zeros((3, 3)), np.zeros((3, 3)))
+    assert np.all(out[:, 0] != 0) and np.all(out[:, 1:] == 0)
