@@ -48,8 +48,12 @@ TESTS: dict[str, list[str]] = {
         "test/test_method2.py",
         "test/test_exact_update_mutants.py",
     ],
-    "core/imu_errors.py": ["test/test_imu_errors.py", "test/test_covariance.py"],
-    "core/frames.py": ["test/test_frames.py", "test/test_tf.py"],
+    "core/imu_errors.py": [
+        "test/test_imu_errors.py",
+        "test/test_covariance.py",
+        "test/test_imu_errors_mutants.py",
+    ],
+    "core/frames.py": ["test/test_frames.py", "test/test_tf.py", "test/test_frames_mutants.py"],
     "core/allan.py": ["test/test_imu_errors.py", "test/test_allan_closed_forms.py"],
     "core/aiding/gnss.py": ["test/test_aiding_models.py", "test/test_aided_models.py"],
     "core/aiding/common.py": ["test/test_aiding_models.py", "test/test_aided_models.py"],
@@ -58,7 +62,7 @@ TESTS: dict[str, list[str]] = {
         "test/test_imu_orientation.py",
         "test/test_messages_mutants.py",
     ],
-    "messages/odometry.py": ["test/test_messages.py", "test/test_messages_mutants.py"],
+    "messages/odometry.py": ["test/test_messages.py", "test/test_odometry_mutants.py"],
     "messages/navsatfix.py": ["test/test_messages.py", "test/test_messages_mutants.py"],
 }
 
