@@ -6,6 +6,7 @@ measured ``/variation/imu_measured``), the same with the navigator on the measur
 (``--set navigator.imu_topic=/variation/imu_measured``: the package's navigator stage, run by
 ``generate``, is the independent reference of the report's own run), and
 ``test/data/aided_default_noisy.yaml`` (the aided filter on ``/reference/imu_measured``).
+Generating and reporting them takes ~40 s, so the tests that use them are ``slow``.
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ def reports(bags: dict[str, Path]):  # noqa: ANN201
             for k in ("default", "measured", "aided", "plain")}  # fmt: skip
 
 
+@pytest.mark.slow  # the module's bags and reports: ~40 s once
 def test_header_names_each_solution_and_its_imu(reports) -> None:  # noqa: ANN001
     expected = {
         "default": {
@@ -107,6 +109,7 @@ def test_header_names_each_solution_and_its_imu(reports) -> None:  # noqa: ANN00
     assert "solution `/aided` consumes the measured IMU `/reference/imu_measured`" in aided_md
 
 
+@pytest.mark.slow  # the module's bags and reports: ~40 s once
 def test_free_inertial_equals_the_package_navigator_on_the_measured_imu(bags, reports) -> None:  # noqa: ANN001
     """The report's run on /variation/imu_measured and generate's navigator stage on the same
     topic (its published odometry and errors) agree to round-off; the errors are real (metres),
@@ -134,6 +137,7 @@ def test_free_inertial_equals_the_package_navigator_on_the_measured_imu(bags, re
     assert "/navigator (in the bag) on /variation/imu (ideal)" in md
 
 
+@pytest.mark.slow  # the module's bags and reports: ~40 s once
 def test_aided_errors_and_nees_recomputed_match_the_published_ones(reports) -> None:  # noqa: ANN001
     a = reports["aided"].aided["/aided"]
     assert a.t.size == 201  # 10 Hz over 20 s, every output with its truth
@@ -165,6 +169,7 @@ def test_chi2_bounds_and_frame_turn() -> None:
     assert d[2, 1] == 0.0
 
 
+@pytest.mark.slow  # the module's bags and reports: ~40 s once
 def test_bags_without_measured_imu_or_aided_filter_say_why(bags, reports, capsys) -> None:  # noqa: ANN001
     plain = reports["plain"]
     assert plain.omitted["free_inertial"] == "no measured IMU topic (`P/imu_measured`)"
