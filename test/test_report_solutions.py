@@ -187,3 +187,31 @@ def test_bags_without_measured_imu_or_aided_filter_say_why(bags, reports, capsys
     assert "free_inertial        omitted: not requested (--no-free-inertial)" in (
         capsys.readouterr().out)  # fmt: skip
     assert not list(out.glob("free_inertial*.png"))
+
+
+@pytest.mark.slow  # the module's bags
+def test_free_inertial_stops_at_an_imu_gap(bags, reports) -> None:  # noqa: ANN001
+    """Five IMU messages missing after 10 s: the run ends at the gap (noted) and matches the
+    full run up to it."""
+    from strapdown_ros.report.free_inertial import free_inertial
+    from strapdown_ros.stages.intake import without_rows
+
+    contents = read_bag(bags["measured"])
+    imu = contents["/variation/imu_measured"]
+    stamps = np.asarray(imu.stamps_ns)
+    drop = np.zeros(stamps.size, dtype=bool)
+    drop[2000:2005] = True
+    path = bags["dir"] / "gap"
+    with BagWriter(path) as w:
+        w.write_batches([batch("/variation/odom", contents["/variation/odom"]),
+                         batch("/variation/imu_measured", without_rows(imu, drop))])  # fmt: skip
+    start = int(np.min(np.asarray(contents["/variation/odom"].stamps_ns)))
+    run = free_inertial(read_bag(path), "/variation/imu_measured", "/variation/odom", start)
+    assert not isinstance(run, str)
+    assert "gap after" in run.note
+    assert run.stamps_ns[-1] <= stamps[1999]
+    full = next(r for r in reports["measured"].free_inertial
+                if r.imu_topic == "/variation/imu_measured")  # fmt: skip
+    n = run.stamps_ns.size
+    assert n > 150 and np.array_equal(full.stamps_ns[:n], run.stamps_ns)
+    assert np.max(np.abs(full.position[:n] - run.position)) < 1e-9

@@ -98,10 +98,13 @@ def free_inertial(
     imu_d, truth_d = contents.topics.get(imu_topic), contents.topics.get(truth_topic)
     if imu_d is None or truth_d is None or imu_d.fields is None or truth_d.fields is None:
         return f"`{imu_topic}` or its truth `{truth_topic}` is missing"
-    try:
-        inc = imu_increments(contents[imu_topic])  # type: ignore[arg-type]
-    except ValueError as exc:
-        return f"`{imu_topic}`: {exc}"
+    imu = contents[imu_topic]
+    raw = np.asarray(imu.stamps_ns, dtype=np.int64)  # type: ignore[attr-defined]
+    if raw.size < 2 or np.any(np.diff(raw) <= 0):
+        return f"`{imu_topic}`: fewer than 2 messages or stamps not increasing"
+    # T: the most common spacing (a gap or a lost message does not change it)
+    steps, counts = np.unique(np.diff(raw), return_counts=True)
+    inc = imu_increments(imu, int(steps[np.argmax(counts)]))  # type: ignore[arg-type]
     truth = odometry_state(contents[truth_topic])  # type: ignore[arg-type]
     stamps = np.asarray(inc.stamps_ns, dtype=np.int64)
     period = int(inc.period_ns)
