@@ -193,6 +193,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="gravitation model of the re-check (default: the one in the bag's metadata, "
         "else j2)",
     )  # fmt: skip
+    rep.add_argument(
+        "--no-free-inertial",
+        action="store_true",
+        help="skip the free-inertial navigator the report runs on each measured IMU",
+    )
 
     bag = sub.add_parser("bag", help="bag utilities: repair an interrupted recording, info")
     bag_sub = bag.add_subparsers(dest="bag_command", metavar="BAG_COMMAND", required=True)
@@ -479,7 +484,7 @@ def _report(args: argparse.Namespace) -> int:
     try:
         result = write_report(
             args.bag, args.out, compare=args.compare, exactness=not args.no_exactness,
-            gravity_model=args.gravity_model,
+            gravity_model=args.gravity_model, free_inertial=not args.no_free_inertial,
         )  # fmt: skip
     except ReportError as exc:
         print(f"strapdown-sim report: {exc}", file=sys.stderr)

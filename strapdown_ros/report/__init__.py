@@ -19,6 +19,7 @@ from pathlib import Path
 
 import yaml
 
+from strapdown_ros.report.aided import AidedResult
 from strapdown_ros.report.data import (
     BagData,
     Comparison,
@@ -27,6 +28,8 @@ from strapdown_ros.report.data import (
     compare_streams,
     load_bag,
 )
+from strapdown_ros.report.free_inertial import ErrorGrowth, FreeInertial
+from strapdown_ros.report.solutions import Solution
 
 __all__ = ["PLOT_FILES", "ReportError", "ReportResult", "method_of", "write_report"]
 
@@ -41,6 +44,9 @@ PLOT_FILES = (
     "method_comparison*.png",
     "allan*.png",
     "aiding.png",
+    "free_inertial*.png",
+    "aided_errors*.png",
+    "aided_consistency*.png",
 )
 
 
@@ -53,6 +59,11 @@ class ReportResult:
     plots: dict[str, Path] = field(default_factory=dict)  #: name -> PNG path
     omitted: dict[str, str] = field(default_factory=dict)  #: plot -> reason
     elapsed_s: float = 0.0
+    #: Free-inertial solutions the report computed (on each measured IMU, and on an ideal twin
+    #: when the bag has no navigator on it).
+    free_inertial: list[FreeInertial] = field(default_factory=list)
+    free_inertial_s: float = 0.0  #: wall time of those runs (decoding the IMU and truth included)
+    aided: dict[str, AidedResult] = field(default_factory=dict)  #: prefix -> recomputed errors
 
 
 def _slug(prefix: str) -> str:
@@ -102,6 +113,7 @@ def write_report(
     compare: Sequence[str | os.PathLike[str]] = (),
     exactness: bool = True,
     gravity_model: str | None = None,
+    free_inertial: bool = True,
 ) -> ReportResult:
     """Write ``report.md`` and the PNG plots of ``bag`` into ``out`` (default ``bag/report``).
 
@@ -120,6 +132,11 @@ def write_report(
         cycles).
     gravity_model : {"j2", "spherical"}, optional
         The model of the re-check; default: the one the bag's metadata records (else j2).
+    free_inertial : bool
+        Run the package's navigator (multirate, exact mode) on each measured IMU
+        ``P/imu_measured`` from its truth ``P/odom`` and plot its error growth beside the exact
+        navigator's on the ideal ``P/imu`` (:mod:`strapdown_ros.report.free_inertial`; ~0.1 s
+        per minute of 200 Hz data, reading included).
 
     Raises
     ------
@@ -129,16 +146,19 @@ def write_report(
         The bag has no topic the report understands.
     """
     from strapdown_ros.report import plots, summary
+    from strapdown_ros.report.aided import aided_prefixes
+    from strapdown_ros.report.solutions import bag_solutions, solution_table
 
     start = time.perf_counter()
     data = load_bag(bag, exactness=exactness, gravity_model=gravity_model)
+    aided = aided_prefixes(data.contents)
     others = [load_bag(p, exactness=False, allan=False, odometry_only=True) for p in compare]
     out_dir = Path(out) if out is not None else Path(bag) / "report"
     out_dir.mkdir(parents=True, exist_ok=True)
     _clear_old(out_dir)
     result = ReportResult(out_dir, out_dir / "report.md")
     md = summary.header(data)
-    md += ["", "## Topics", ""] + summary.topic_table(data)
+    solutions = bag_solutions(data, aided)
     sections: list[str] = []
     images: list[tuple[str, str, str]] = []  # (name, file, caption)
 
@@ -181,8 +201,9 @@ def write_report(
         result.omitted["exactness"] = "not requested (--no-exactness)"
 
     # --- navigation errors
-    if data.errors:
-        for owner, es in data.errors.items():
+    nav_errors = {o: es for o, es in data.errors.items() if o not in aided}
+    if nav_errors:
+        for owner, es in nav_errors.items():
             suffix = "" if owner == "/navigator" else "_" + _slug(owner)
             sections += ["", f"## Navigation errors of `{owner}`", ""] + summary.error_table(es)
             draw(f"navigation_errors{suffix}", f"navigation_errors{suffix}.png",
@@ -194,9 +215,12 @@ def write_report(
         )
 
     # --- Method 1 vs Method 2 (or any two variation streams)
-    candidates = [(data, s, _label(data, s, bool(others))) for s in data.variation_streams()]
+    candidates = [(data, s, _label(data, s, bool(others))) for s in data.variation_streams()
+                  if s.prefix not in aided]  # fmt: skip
     for o in others:
-        candidates += [(o, s, _label(o, s, True)) for s in o.variation_streams()]
+        o_aided = aided_prefixes(o.contents)
+        candidates += [(o, s, _label(o, s, True)) for s in o.variation_streams()
+                       if s.prefix not in o_aided]  # fmt: skip
     if len(candidates) >= 2:
         (_, sa, la) = candidates[0]
         for j, (_, sb, lb) in enumerate(candidates[1:]):
@@ -249,7 +273,24 @@ def write_report(
     else:
         result.omitted["aiding"] = "no aiding topic (`/gnss/fix`, `/baro/pressure`, ...)"
 
+    # --- free-inertial solutions on the measured IMUs
+    if free_inertial:
+        sections += _free_inertial_sections(data, solutions, result, draw)
+    else:
+        result.omitted["free_inertial"] = "not requested (--no-free-inertial)"
+    solutions += [
+        Solution(r.label, "free-inertial (report)", r.imu_topic, r.kind, r.truth_topic,
+                 "computed by this report")
+        for r in result.free_inertial
+    ]  # fmt: skip
+
+    # --- aided filter
+    sections += _aided_sections(data, aided, result, draw)
+
     result.elapsed_s = time.perf_counter() - start
+    if solutions:
+        md += ["", "## Solutions and the IMU each consumes", ""] + solution_table(solutions)
+    md += ["", "## Topics", ""] + summary.topic_table(data)
     md += sections
     md += ["", "## Plots", ""]
     for name, fname, caption in images:
@@ -261,3 +302,105 @@ def write_report(
     md += [f"_Written by `strapdown-sim report` in {result.elapsed_s:.1f} s._", ""]
     result.markdown.write_text("\n".join(md), encoding="utf-8")
     return result
+
+
+def _free_inertial_sections(data: BagData, solutions: list[Solution], result: ReportResult,
+                            draw) -> list[str]:  # noqa: ANN001  # fmt: skip
+    """The report's navigator on each measured IMU ``P/imu_measured`` (truth ``P/odom``), beside
+    the exact navigator on the ideal ``P/imu``: the bag's navigator when it consumes it, else the
+    report's navigator on it."""
+    from strapdown_ros.report.free_inertial import free_inertial, growth_table, plot_free_inertial
+
+    out: list[str] = []
+    if not data.measured:
+        result.omitted["free_inertial"] = "no measured IMU topic (`P/imu_measured`)"
+        return out
+    model = data.settings.gravity_model if data.settings is not None else "j2"
+
+    def run_on(imu: str, truth: str, kind: str) -> FreeInertial | str:
+        clock = time.perf_counter()
+        run = free_inertial(data.contents, imu, truth, data.start_ns, gravity_model=model,
+                            kind=kind)  # fmt: skip
+        result.free_inertial_s += time.perf_counter() - clock
+        return run
+
+    for prefix, mi in data.measured.items():
+        suffix = "" if len(data.measured) == 1 else "_" + _slug(prefix)
+        truth = f"{prefix}/odom"
+        stream = data.streams.get(prefix)
+        if stream is None or stream.r_e is None or stream.source != truth:
+            result.omitted[f"free_inertial{suffix}"] = (
+                f"no truth `{truth}` (ECEF Odometry) for `{mi.measured.topic}`"
+            )
+            continue
+        run = run_on(mi.measured.topic, truth, "measured")
+        if isinstance(run, str):
+            result.omitted[f"free_inertial{suffix}"] = run
+            continue
+        result.free_inertial.append(run)
+        series = [ErrorGrowth.of(run)]
+        ideal_t = f"{prefix}/imu"
+        nav = next((s for s in solutions if s.origin == "navigator" and s.imu_topic == ideal_t
+                    and s.name in data.errors), None)  # fmt: skip
+        es = data.errors.get(nav.name) if nav is not None else None
+        if es is not None and es.position and es.velocity and es.attitude:
+            series.append(ErrorGrowth(f"{nav.name} (in the bag) on {ideal_t} (ideal)",  # type: ignore[union-attr]
+                                      es.position[0], es.position[1], es.velocity[1],
+                                      es.attitude[1]))  # fmt: skip
+        elif ideal_t in data.contents.topics:
+            twin = run_on(ideal_t, truth, "ideal")
+            if not isinstance(twin, str):
+                result.free_inertial.append(twin)
+                series.append(ErrorGrowth.of(twin))
+        spec = run.spec
+        out += ["", f"## Free-inertial navigation on the measured IMU `{mi.measured.topic}`", "",
+                f"The package's navigator ({spec.algorithm}, {spec.mode} mode, N = {spec.n}, "
+                f"p = {spec.p}, gravity {model}, no damping) run by the report on the recorded "
+                f"increments of `{mi.measured.topic}`, initialized from `{truth}` at "
+                f"{run.t[0]:.3f} s without initial errors; errors against `{truth}` at every "
+                "navigation cycle (docs/interface.md §4).", ""]  # fmt: skip
+        if run.note:
+            out += [f"Note: {run.note}.", ""]
+        out += growth_table(series)
+        draw(f"free_inertial{suffix}", f"free_inertial{suffix}.png",
+             f"Error growth of the free-inertial navigator on the measured `{mi.measured.topic}` "
+             f"beside the exact navigator on the ideal `{ideal_t}` (log scale).",
+             plot_free_inertial, series, f"{data.name}: free-inertial error growth on "
+             f"{mi.measured.topic} vs the ideal {ideal_t}")  # fmt: skip
+    return out
+
+
+def _aided_sections(data: BagData, aided: list[str], result: ReportResult,
+                    draw) -> list[str]:  # noqa: ANN001  # fmt: skip
+    """Errors with ±3σ, NEES and NIS of each aided filter, recomputed from the bag."""
+    from strapdown_ros.report.aided import (
+        aided_data,
+        aided_table,
+        plot_aided_consistency,
+        plot_aided_errors,
+    )
+
+    out: list[str] = []
+    if not aided:
+        result.omitted["aided"] = (
+            "no aided filter outputs (`P/odom` + `P/nees`, the `aided` section's `/aided/*`)"
+        )
+        return out
+    for prefix in aided:
+        suffix = "" if prefix == "/aided" else "_" + _slug(prefix)
+        a = aided_data(data.contents, prefix, data.start_ns)
+        if isinstance(a, str):
+            result.omitted[f"aided{suffix}"] = a
+            continue
+        result.aided[prefix] = a
+        out += ["", f"## Aided filter `{prefix}`", ""] + aided_table(a)
+        if not a.t.size:
+            result.omitted[f"aided{suffix}"] = f"`{prefix}` and its truth share no stamp"
+            continue
+        draw(f"aided_errors{suffix}", f"aided_errors{suffix}.png",
+             f"`{prefix}` minus truth per axis with the filter's ±3σ (from its covariances).",
+             plot_aided_errors, a, data.name)  # fmt: skip
+        draw(f"aided_consistency{suffix}", f"aided_consistency{suffix}.png",
+             f"NEES of `{prefix}` (recomputed) and NIS per measurement with the 95 % χ² "
+             "interval.", plot_aided_consistency, a, data.name)  # fmt: skip
+    return out

@@ -12,7 +12,6 @@ from strapdown_ros.report.data import (
     Comparison,
     ErrorSet,
     MeasuredImu,
-    is_navigator,
 )
 
 __all__ = [
@@ -73,40 +72,30 @@ def header(bag: BagData) -> list[str]:
     return lines
 
 
-def _imu_kind(bag: BagData, topic: str) -> str:
-    """``ideal`` (an exact stream's ``P/imu``), ``measured`` (an error model's output) or
-    ``IMU``."""
-    if topic.endswith("/imu_measured") or any(
-        m.measured.topic == topic for m in bag.measured.values()
-    ):
-        return "measured"
-    if any(d.topic == topic for d in bag.imus.values()):
-        return "ideal"
-    return "IMU"
-
-
 def solution_inputs(bag: BagData) -> list[str]:
-    """One line per navigation solution: the IMU topic it consumes, ideal or measured.
+    """One line per navigation solution of the bag: the IMU topic it consumes, ideal or measured.
 
-    From the bag's ``custom_data`` (``navigator.imu_topic``, or ``<prefix>.imu_topic`` for a
-    solution under another prefix); a solution whose input is not recorded says so.
+    Navigators: from the bag's ``custom_data`` (``navigator.imu_topic``, or
+    ``<prefix>.imu_topic`` for a solution under another prefix); a solution whose input is not
+    recorded says so. Aided filters: the measured IMU of the reference
+    (:func:`strapdown_ros.report.solutions.bag_solutions`).
     """
-    cd = bag.contents.custom_data
-    owners = [p for p in bag.streams if is_navigator(p)]
-    owners += [p for p in bag.errors if p not in owners]
+    from strapdown_ros.report.aided import aided_prefixes
+    from strapdown_ros.report.solutions import bag_solutions
+
     out = []
-    for owner in owners:
-        key = owner.strip("/")
-        topic = cd.get(f"{key}.imu_topic") or (cd.get("navigator.imu_topic") if key ==
-                                                 "navigator" else None)  # fmt: skip
-        if topic:
-            kind = _imu_kind(bag, topic)
-            out.append(f"solution `{owner}` consumes the {kind} IMU `{topic}`")
-        else:
+    for s in bag_solutions(bag, aided_prefixes(bag.contents)):
+        key = s.name.strip("/")
+        if s.imu_topic:
+            kind = "" if s.kind == "unknown" else f"{s.kind} "
+            out.append(f"solution `{s.name}` consumes the {kind}IMU `{s.imu_topic}`")
+        elif s.origin == "navigator":
             out.append(
-                f"solution `{owner}`: the bag's metadata does not record which IMU it consumes "
+                f"solution `{s.name}`: the bag's metadata does not record which IMU it consumes "
                 f"(`{key}.imu_topic`)"
             )
+        else:
+            out.append(f"solution `{s.name}` ({s.origin}): {s.source}")
     return out
 
 
