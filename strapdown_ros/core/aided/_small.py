@@ -18,7 +18,6 @@ from strapdown_ros.core.navigation._kernels import rotation_coefficients_scalar
 __all__ = [
     "cross",
     "matmul3",
-    "matmul3_t",
     "matvec3",
     "matvec3_t",
     "rot_z",
@@ -72,16 +71,6 @@ def matmul3(a, b):
     for i in range(3):
         for j in range(3):
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
-    return out
-
-
-@jit
-def matmul3_t(a, b):
-    """``a bᵀ`` of two (3, 3) matrices."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = a[i, 0] * b[j, 0] + a[i, 1] * b[j, 1] + a[i, 2] * b[j, 2]
     return out
 
 

@@ -121,6 +121,15 @@ def _put3(h, row, col, m, sign):
 
 
 @jit
+def _measurement_bias(nu, h, est, k):
+    """An additive measurement bias state at ``k`` (none if ``k < 0``): ``ν -= b̂``, ``H_b = I``."""
+    if k >= 0:
+        for i in range(3):
+            nu[i] -= est[k + i]
+            h[i, k + i] = 1.0
+
+
+@jit
 def gnss_position_model(r, lo, c, t, est, off, lever, r_meas, lat_m, lon_m):
     """GNSS antenna position: ``(ν, H)`` in NED of the measured fix (m).
 
@@ -143,11 +152,7 @@ def gnss_position_model(r, lo, c, t, est, off, lever, r_meas, lat_m, lon_m):
     h = np.zeros((3, n))
     _put3(h, 0, 0, m, 1.0)
     _put3(h, 0, 6, matmul3(m, skew(cl)), -1.0)
-    gp = off[B_GNSS_POS]
-    if gp >= 0:
-        for i in range(3):
-            nu[i] -= est[gp + i]
-            h[i, gp + i] = 1.0
+    _measurement_bias(nu, h, est, off[B_GNSS_POS])
     return nu, h
 
 
@@ -216,11 +221,7 @@ def gnss_velocity_model(r, v, c, t, est, off, lever, da_raw, period, v_meas_ned)
     gm_ = matmul3(g, m)
     _put3(h, 0, 0, gm_, 1.0)
     _put3(h, 0, 6, matmul3(gm_, skew(cl)), -1.0)
-    gv = off[B_GNSS_VEL]
-    if gv >= 0:
-        for i in range(3):
-            nu[i] -= est[gv + i]
-            h[i, gv + i] = 1.0
+    _measurement_bias(nu, h, est, off[B_GNSS_VEL])
     return nu, h
 
 
@@ -276,11 +277,7 @@ def mag_model(r, c, t, est, off, m_meas, g, hc, a1, a2, diag, radius):
         nu[i] = m_meas[i] - pred[i]
     h = np.zeros((3, n))
     _put3(h, 0, 6, matmul3(c.T.copy(), skew(b0)), 1.0)
-    k = off[B_MAG]
-    if k >= 0:
-        for i in range(3):
-            nu[i] -= est[k + i]
-            h[i, k + i] = 1.0
+    _measurement_bias(nu, h, est, off[B_MAG])
     return nu, h
 
 

@@ -121,20 +121,8 @@ def joseph_update(p, nu, h, rm, gate):
             s += k[i, a] * nu[a]
         dx[i] = s
     # B = P - K (P Hᵀ)ᵀ ;  C = B Hᵀ = P Hᵀ - K (H P Hᵀ)
-    bm = np.empty((n, n))
-    for i in range(n):
-        for j in range(n):
-            s = p[i, j]
-            for a in range(m):
-                s -= k[i, a] * ph[j, a]
-            bm[i, j] = s
-    cm = np.empty((n, m))
-    for i in range(n):
-        for a in range(m):
-            s = ph[i, a]
-            for b in range(m):
-                s -= k[i, b] * hph[b, a]
-            cm[i, a] = s
+    bm = _minus_product_t(p, k, ph)
+    cm = _minus_product_t(ph, k, hph.T.copy())
     kr = np.empty((n, m))
     for i in range(n):
         for a in range(m):
@@ -154,6 +142,19 @@ def joseph_update(p, nu, h, rm, gate):
             p[i, j] = s
             p[j, i] = s
     return dx, nis, True
+
+
+@jit
+def _minus_product_t(a, b, c):
+    """``A - B Cᵀ`` (each term subtracted in turn, as the loops it replaces did)."""
+    out = np.empty(a.shape)
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            s = a[i, j]
+            for q in range(b.shape[1]):
+                s -= b[i, q] * c[j, q]
+            out[i, j] = s
+    return out
 
 
 @jit
