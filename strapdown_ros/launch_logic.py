@@ -150,6 +150,22 @@ def parse_float(name: str, text: str) -> float:
         raise LaunchError(f"{name}:={text}: must be a number") from None
 
 
+def parse_command(label: str, text: str, empty: str) -> list[str]:
+    """``text`` split as a POSIX shell would (no shell runs it). :class:`LaunchError` when it
+    does not split, is empty (``empty``: the message) or its program is not found; ``label``
+    names the argument, e.g. ``node:=`` or ``--node ``."""
+    try:
+        args = shlex.split(text)
+    except ValueError as exc:
+        raise LaunchError(f"{label}{text!r}: {exc}") from None
+    if not args:
+        raise LaunchError(empty)
+    if shutil.which(args[0]) is None:
+        why = "is not executable" if Path(args[0]).is_file() else "command not found"
+        raise LaunchError(f"{label}{text!r}: {args[0]}: {why}")
+    return args
+
+
 def pipeline_counts(plan: Any) -> dict[str, dict[str, int]]:
     """Node → {topic it publishes: subscriptions to wait for}, for the nodes the scenario's plan
     (:func:`strapdown_ros.plan.resolve_plan`) needs, in chain order (the source,

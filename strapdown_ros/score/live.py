@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import os
 import re
-import shlex
-import shutil
 import signal
 import subprocess
 import sys
@@ -34,6 +32,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from strapdown_ros.launch_logic import LaunchError, parse_command
 from strapdown_ros.pipeline.processes import (
     Child,
     Children,
@@ -150,15 +149,9 @@ def command_args(command: str) -> list[str]:
     """``command`` split as a POSIX shell would (no shell runs it); LiveInputError when it is
     empty or its program is not found."""
     try:
-        args = shlex.split(command)
-    except ValueError as exc:
-        raise LiveInputError(f"--node {command!r}: {exc}") from None
-    if not args:
-        raise LiveInputError("--node: the command is empty")
-    if shutil.which(args[0]) is None:
-        why = "is not executable" if Path(args[0]).is_file() else "command not found"
-        raise LiveInputError(f"--node {command!r}: {args[0]}: {why}")
-    return args
+        return parse_command("--node ", command, "--node: the command is empty")
+    except LaunchError as exc:
+        raise LiveInputError(str(exc)) from None
 
 
 def bag_topic_types(bag: str | os.PathLike[str]) -> dict[str, str]:

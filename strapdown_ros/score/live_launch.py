@@ -22,13 +22,17 @@ give no step and no reason.
 from __future__ import annotations
 
 import re
-import shlex
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from strapdown_ros.launch_logic import LaunchError, NodeFailedError, parse_bool, parse_float
+from strapdown_ros.launch_logic import (
+    LaunchError,
+    NodeFailedError,
+    parse_bool,
+    parse_command,
+    parse_float,
+)
 
 __all__ = ["ESTIMATE_TYPES", "LiveSequence", "ScoreLivePlan", "Step", "plan_score_live"]
 
@@ -84,14 +88,7 @@ def plan_score_live(
     bag_dir = Path(bag).absolute()
     if not (bag_dir / "metadata.yaml").is_file():
         raise LaunchError(f"bag:={bag}: not a bag directory (no metadata.yaml)")
-    try:
-        command = shlex.split(node)
-    except ValueError as exc:
-        raise LaunchError(f"node:={node!r}: {exc}") from None
-    if not command:
-        raise LaunchError("node:= is required: the command that runs your node")
-    if shutil.which(command[0]) is None:
-        raise LaunchError(f"node:={node!r}: {command[0]}: command not found")
+    command = parse_command("node:=", node, "node:= is required: the command that runs your node")
     if not topic.startswith("/"):
         raise LaunchError(f"topic:={topic!r}: the estimate topic, an absolute name (/name)")
     topics = [t for t in re.split(r"[,\s]+", inputs) if t]
