@@ -19,6 +19,8 @@ from strapdown_ros.config.base import (
     ScenarioError,
     StrictBool,
     StrictInt,
+    frame_id,
+    topic_name,
 )
 
 if TYPE_CHECKING:
@@ -86,21 +88,12 @@ NedSigma = Annotated[Axes, BeforeValidator(_axes)]
 
 
 def _topic(value: Any) -> Any:
-    if not isinstance(value, str) or not value.startswith("/") or " " in value:
-        raise ValueError(f"must be an absolute topic name, got {value!r}")
-    return value.rstrip("/") or value
+    topic = topic_name(value)
+    return topic.rstrip("/") or topic
 
 
 Topic = Annotated[str, BeforeValidator(_topic)]
-
-
-def _frame(value: Any) -> Any:
-    if not isinstance(value, str) or not value or " " in value:
-        raise ValueError(f"must be a frame id, got {value!r}")
-    return value
-
-
-FrameId = Annotated[str, BeforeValidator(_frame)]
+FrameId = Annotated[str, BeforeValidator(frame_id)]
 
 
 class InitialSigmaSpec(Model):

@@ -26,6 +26,7 @@ from strapdown_ros.config.base import (
     StrictInt,
     Vector3,
     finite_number,
+    frame_id,
     require_correlation_times,
     shorten,
 )
@@ -114,9 +115,7 @@ Seed = Annotated[StrictInt, Field(ge=0)]
 
 
 def _frame(value: Any) -> Any:
-    if value is not None and (not isinstance(value, str) or not value or " " in value):
-        raise ValueError(f"must be a frame id, got {shorten(value)}")
-    return value
+    return value if value is None else frame_id(value)
 
 
 FrameId = Annotated[str | None, BeforeValidator(_frame)]

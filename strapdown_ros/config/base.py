@@ -42,9 +42,13 @@ __all__ = [
     "Vector3",
     "error_from_validation",
     "finite_number",
+    "frame_id",
+    "is_frame_id",
+    "is_topic_name",
     "join_key",
     "require_correlation_times",
     "shorten",
+    "topic_name",
     "with_preset",
 ]
 
@@ -136,6 +140,30 @@ NonNegative = Annotated[float, Strict(), Field(allow_inf_nan=False, ge=0.0)]
 StrictInt = Annotated[int, Strict()]
 #: ``true`` or ``false``.
 StrictBool = Annotated[bool, Strict()]
+
+
+def is_topic_name(value: Any) -> bool:
+    """An absolute ROS topic name: a string that starts with ``/`` and has no space."""
+    return isinstance(value, str) and value.startswith("/") and " " not in value
+
+
+def is_frame_id(value: Any) -> bool:
+    """A frame id: a non-empty string without spaces."""
+    return isinstance(value, str) and bool(value) and " " not in value
+
+
+def topic_name(value: Any) -> Any:
+    """``value`` when :func:`is_topic_name`, else ValueError (a pydantic before-validator)."""
+    if not is_topic_name(value):
+        raise ValueError(f"must be an absolute topic name, got {shorten(value)}")
+    return value
+
+
+def frame_id(value: Any) -> Any:
+    """``value`` when :func:`is_frame_id`, else ValueError (a pydantic before-validator)."""
+    if not is_frame_id(value):
+        raise ValueError(f"must be a frame id, got {shorten(value)}")
+    return value
 
 
 def finite_number(value: Any) -> float:

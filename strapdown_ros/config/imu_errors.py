@@ -22,6 +22,7 @@ from strapdown_ros.config.base import (
     finite_number,
     require_correlation_times,
     shorten,
+    topic_name,
 )
 
 if TYPE_CHECKING:  # imported by parameters(): the core model loads scipy.signal
@@ -303,11 +304,7 @@ FullMatrix = Annotated[Matrix3 | None, BeforeValidator(_full_matrix)]
 
 
 def _topic(value: Any) -> Any:
-    if value is not None and (
-        not isinstance(value, str) or not value.startswith("/") or " " in value
-    ):
-        raise ValueError(f"must be an absolute topic name, got {shorten(value)}")
-    return value
+    return value if value is None else topic_name(value)
 
 
 class ImuErrorsSpec(PresetModel):

@@ -23,7 +23,10 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    frame_id,
+    is_topic_name,
     shorten,
+    topic_name,
 )
 
 __all__ = [
@@ -112,23 +115,19 @@ class NavigatorSpec(Model):
     @field_validator("imu_topic", mode="before")
     @classmethod
     def _imu_topic(cls, value: Any) -> Any:
-        if not isinstance(value, str) or not value.startswith("/"):
-            raise ValueError(f"must be an absolute topic, got {shorten(value)}")
-        return value
+        return topic_name(value)
 
     @field_validator("truth_topic", mode="before")
     @classmethod
     def _truth_topic(cls, value: Any) -> Any:
-        if not isinstance(value, str) or (value and not value.startswith("/")):
-            raise ValueError(f"must be an absolute topic or empty, got {shorten(value)}")
-        return value
+        if value == "" or is_topic_name(value):
+            return value
+        raise ValueError(f"must be an absolute topic name or empty, got {shorten(value)}")
 
     @field_validator("frame_id", mode="before")
     @classmethod
     def _frame_id(cls, value: Any) -> Any:
-        if not isinstance(value, str) or not value or " " in value:
-            raise ValueError(f"must be a frame id, got {shorten(value)}")
-        return value
+        return frame_id(value)
 
     @field_validator("vertical_damping", mode="before")
     @classmethod

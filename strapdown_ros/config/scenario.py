@@ -29,6 +29,8 @@ from strapdown_ros.config.base import (
     ScenarioError,
     StrictBool,
     StrictInt,
+    is_frame_id,
+    is_topic_name,
     shorten,
     validate_section,
 )
@@ -107,10 +109,9 @@ def _names(value: Any, defaults: Mapping[str, str], what: str) -> dict[str, str]
     for key, name in value.items():
         if key not in defaults:
             raise ScenarioError(str(key), "unknown key; expected one of: " + ", ".join(defaults))
-        if what == "topic" and (not isinstance(name, str) or not name.startswith("/")
-                                or " " in name):  # fmt: skip
+        if what == "topic" and not is_topic_name(name):
             raise ScenarioError(str(key), f"must be an absolute topic name, got {shorten(name)}")
-        if what == "frame" and (not isinstance(name, str) or not name or " " in name):
+        if what == "frame" and not is_frame_id(name):
             raise ScenarioError(str(key), f"must be a frame id, got {shorten(name)}")
         out[str(key)] = name
     return out

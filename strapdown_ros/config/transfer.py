@@ -21,6 +21,7 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    topic_name,
 )
 
 if TYPE_CHECKING:
@@ -128,9 +129,8 @@ class TransferAlignmentSpec(Model):
     @field_validator("imu_topic", "master_topic", "truth_topic", "topic_prefix")
     @classmethod
     def _topic(cls, value: str) -> str:
-        if not value.startswith("/") or " " in value:
-            raise ValueError(f"must be an absolute topic name, got {value!r}")
-        return value.rstrip("/") or value
+        topic = topic_name(value)
+        return topic.rstrip("/") or topic
 
     @property
     def period_ns(self) -> int:
