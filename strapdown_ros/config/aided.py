@@ -19,8 +19,8 @@ from strapdown_ros.config.base import (
     ScenarioError,
     StrictBool,
     StrictInt,
-    frame_id,
-    topic_name,
+    check_frame_id,
+    check_topic_name,
 )
 
 if TYPE_CHECKING:
@@ -88,12 +88,12 @@ NedSigma = Annotated[Axes, BeforeValidator(_axes)]
 
 
 def _topic(value: Any) -> Any:
-    topic = topic_name(value)
+    topic = check_topic_name(value)
     return topic.rstrip("/") or topic
 
 
 Topic = Annotated[str, BeforeValidator(_topic)]
-FrameId = Annotated[str, BeforeValidator(frame_id)]
+FrameId = Annotated[str, BeforeValidator(check_frame_id)]
 
 
 class InitialSigmaSpec(Model):

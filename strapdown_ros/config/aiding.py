@@ -25,8 +25,8 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
+    check_frame_id,
     finite_number,
-    frame_id,
     require_correlation_times,
     shorten,
 )
@@ -115,7 +115,7 @@ Seed = Annotated[StrictInt, Field(ge=0)]
 
 
 def _frame(value: Any) -> Any:
-    return value if value is None else frame_id(value)
+    return value if value is None else check_frame_id(value)
 
 
 FrameId = Annotated[str | None, BeforeValidator(_frame)]

@@ -40,15 +40,15 @@ __all__ = [
     "StrictBool",
     "StrictInt",
     "Vector3",
+    "check_frame_id",
+    "check_topic_name",
     "error_from_validation",
     "finite_number",
-    "frame_id",
     "is_frame_id",
     "is_topic_name",
     "join_key",
     "require_correlation_times",
     "shorten",
-    "topic_name",
     "with_preset",
 ]
 
@@ -152,14 +152,14 @@ def is_frame_id(value: Any) -> bool:
     return isinstance(value, str) and bool(value) and " " not in value
 
 
-def topic_name(value: Any) -> Any:
+def check_topic_name(value: Any) -> Any:
     """``value`` when :func:`is_topic_name`, else ValueError (a pydantic before-validator)."""
     if not is_topic_name(value):
         raise ValueError(f"must be an absolute topic name, got {shorten(value)}")
     return value
 
 
-def frame_id(value: Any) -> Any:
+def check_frame_id(value: Any) -> Any:
     """``value`` when :func:`is_frame_id`, else ValueError (a pydantic before-validator)."""
     if not is_frame_id(value):
         raise ValueError(f"must be a frame id, got {shorten(value)}")

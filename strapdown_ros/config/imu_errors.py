@@ -19,10 +19,10 @@ from strapdown_ros.config.base import (
     PresetModel,
     ScenarioError,
     StrictInt,
+    check_topic_name,
     finite_number,
     require_correlation_times,
     shorten,
-    topic_name,
 )
 
 if TYPE_CHECKING:  # imported by parameters(): the core model loads scipy.signal
@@ -304,7 +304,7 @@ FullMatrix = Annotated[Matrix3 | None, BeforeValidator(_full_matrix)]
 
 
 def _topic(value: Any) -> Any:
-    return value if value is None else topic_name(value)
+    return value if value is None else check_topic_name(value)
 
 
 class ImuErrorsSpec(PresetModel):

@@ -13,7 +13,7 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, field_validator, model_validator
+from pydantic import BeforeValidator, Field, field_validator, model_validator
 
 from strapdown_ros.config.base import (
     Model,
@@ -23,10 +23,10 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
-    frame_id,
+    check_frame_id,
+    check_topic_name,
     is_topic_name,
     shorten,
-    topic_name,
 )
 
 __all__ = [
@@ -91,7 +91,7 @@ class NavigatorSpec(Model):
     mode: Literal["paper", "exact"] | None = None
     n: Annotated[StrictInt, Field(ge=1)] = 10
     p: Annotated[StrictInt, Field(ge=1)] = 2
-    imu_topic: str | None = None
+    imu_topic: Annotated[str | None, BeforeValidator(check_topic_name)] = None  # null refused
     truth_topic: str | None = None
     initialization: Literal["truth", "scenario"] = "truth"
     initial_errors: InitialErrors = Field(default_factory=InitialErrors)
@@ -99,7 +99,7 @@ class NavigatorSpec(Model):
     gravity_model: Literal["j2", "spherical"] | None = None
     table1_radii: StrictBool = False
     normalize_quaternion: StrictBool = True
-    frame_id: str = "navigator"
+    frame_id: Annotated[str, BeforeValidator(check_frame_id)] = "navigator"
 
     @model_validator(mode="before")
     @classmethod
@@ -112,22 +112,12 @@ class NavigatorSpec(Model):
             out["truth_topic"] = ""  # null: no truth topic
         return out
 
-    @field_validator("imu_topic", mode="before")
-    @classmethod
-    def _imu_topic(cls, value: Any) -> Any:
-        return topic_name(value)
-
     @field_validator("truth_topic", mode="before")
     @classmethod
     def _truth_topic(cls, value: Any) -> Any:
         if value == "" or is_topic_name(value):
             return value
         raise ValueError(f"must be an absolute topic name or empty, got {shorten(value)}")
-
-    @field_validator("frame_id", mode="before")
-    @classmethod
-    def _frame_id(cls, value: Any) -> Any:
-        return frame_id(value)
 
     @field_validator("vertical_damping", mode="before")
     @classmethod

@@ -21,7 +21,7 @@ from strapdown_ros.config.base import (
     StrictBool,
     StrictInt,
     Vector3,
-    topic_name,
+    check_topic_name,
 )
 
 if TYPE_CHECKING:
@@ -129,7 +129,7 @@ class TransferAlignmentSpec(Model):
     @field_validator("imu_topic", "master_topic", "truth_topic", "topic_prefix")
     @classmethod
     def _topic(cls, value: str) -> str:
-        topic = topic_name(value)
+        topic = check_topic_name(value)
         return topic.rstrip("/") or topic
 
     @property
