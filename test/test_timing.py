@@ -23,16 +23,9 @@ name: timing_test
 rate_hz: 100
 duration_s: 4
 start_time_s: 1767225600.0
-initial:
-  latitude_deg: 52.52
-  longitude_deg: 13.405
-  altitude_m: 34.0
-  velocity_ned_mps: [10.0, 0.0, 0.0]
-  attitude_rph_deg: [0.0, 0.0, 0.0]
-trajectory:
-  kind: segments
-  segments:
-    - {duration_s: 4, heading_rate_dps: 10, transition_s: 1}
+initial: {latitude_deg: 52.52, longitude_deg: 13.405, altitude_m: 34.0,
+          velocity_ned_mps: [10.0, 0.0, 0.0], attitude_rph_deg: [0.0, 0.0, 0.0]}
+trajectory: {kind: segments, segments: [{duration_s: 4, heading_rate_dps: 10, transition_s: 1}]}
 variation: {}
 imu_errors: {preset: tactical, seed: 3}
 aiding:
