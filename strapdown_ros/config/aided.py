@@ -21,6 +21,7 @@ from strapdown_ros.config.base import (
     StrictInt,
     check_frame_id,
     check_topic_name,
+    enabled_section,
 )
 
 if TYPE_CHECKING:
@@ -239,8 +240,7 @@ def aided_output_keys(sensors: Any) -> dict[str, str]:
 
 def aided_spec(scenario: Any) -> AidedSpec | None:
     """The scenario's enabled ``aided`` section (None without one or with ``enabled: false``)."""
-    spec = getattr(scenario, "aided", None)
-    return spec if spec is not None and spec.enabled else None
+    return enabled_section(scenario, "aided")
 
 
 def check_aided(

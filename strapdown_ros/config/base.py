@@ -42,12 +42,14 @@ __all__ = [
     "Vector3",
     "check_frame_id",
     "check_topic_name",
+    "enabled_section",
     "error_from_validation",
     "finite_number",
     "is_frame_id",
     "is_topic_name",
     "join_key",
     "require_correlation_times",
+    "required_section",
     "shorten",
     "with_preset",
 ]
@@ -164,6 +166,20 @@ def check_frame_id(value: Any) -> Any:
     if not is_frame_id(value):
         raise ValueError(f"must be a frame id, got {shorten(value)}")
     return value
+
+
+def enabled_section(scenario: Any, key: str) -> Any:
+    """The scenario's section ``key`` if it has one with ``enabled: true``, else None."""
+    spec = getattr(scenario, key, None)
+    return spec if spec is not None and spec.enabled else None
+
+
+def required_section(scenario: Any, key: str) -> Any:
+    """:func:`enabled_section`, or :class:`ScenarioError` under ``key`` when there is none."""
+    spec = enabled_section(scenario, key)
+    if spec is None:
+        raise ScenarioError(key, f"missing or disabled: this needs an enabled '{key}' section")
+    return spec
 
 
 def finite_number(value: Any) -> float:

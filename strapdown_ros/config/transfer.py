@@ -22,6 +22,7 @@ from strapdown_ros.config.base import (
     StrictInt,
     Vector3,
     check_topic_name,
+    enabled_section,
 )
 
 if TYPE_CHECKING:
@@ -147,8 +148,7 @@ class TransferAlignmentSpec(Model):
 
 def transfer_spec(scenario: Any) -> TransferAlignmentSpec | None:
     """The scenario's enabled ``transfer_alignment`` section (None without one or disabled)."""
-    spec = getattr(scenario, "transfer_alignment", None)
-    return spec if spec is not None and spec.enabled else None
+    return enabled_section(scenario, "transfer_alignment")
 
 
 def check_transfer(

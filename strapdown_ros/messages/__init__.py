@@ -73,7 +73,11 @@ from strapdown_ros.messages.navsatfix import (
     navsatfix_fields,
     navsatfix_fields_from_geodetic,
 )
-from strapdown_ros.messages.odometry import odometry_fields, odometry_fields_from_ecef
+from strapdown_ros.messages.odometry import (
+    odometry_fields,
+    odometry_fields_from_ecef,
+    twist_covariance_flu,
+)
 from strapdown_ros.messages.stream import StreamFields, stream_fields
 from strapdown_ros.messages.tf import (
     increment_fields,
@@ -130,5 +134,6 @@ __all__ = [
     "stream_fields",
     "stream_from_messages",
     "tf_message_fields",
+    "twist_covariance_flu",
     "vector3_stamped_fields",
 ]

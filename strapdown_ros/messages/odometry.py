@@ -20,7 +20,15 @@ from strapdown_ros.messages.fields import OdometryFields, as_rows, as_stamps, co
 from strapdown_ros.messages.frames import DEFAULT_BODY_FRAME, EARTH_FRAME, quat_ros_from_dcm
 from strapdown_ros.messages.truth import StreamTruth
 
-__all__ = ["odometry_fields", "odometry_fields_from_ecef"]
+__all__ = ["odometry_fields", "odometry_fields_from_ecef", "twist_covariance_flu"]
+
+#: The FRD → FLU axis signs of a twist ``(v, ω)``: ``diag(1, -1, -1)`` on each.
+_FLU6 = np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+
+
+def twist_covariance_flu(cov_frd: np.ndarray) -> np.ndarray:
+    """Twist covariances (k, 6, 6) of ``(v, ω)`` in body FRD axes, in FLU (the message's)."""
+    return cov_frd * _FLU6[None, :, None] * _FLU6[None, None, :]
 
 
 def odometry_fields_from_ecef(

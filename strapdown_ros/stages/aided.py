@@ -24,7 +24,7 @@ filter (nothing is integrated across it; logged).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,9 +32,10 @@ import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.config import Scenario, ScenarioError
+from strapdown_ros.config import Scenario
 from strapdown_ros.config.aided import SENSOR_SOURCE, AidedSpec, aided_spec
 from strapdown_ros.config.aiding import AIDING_TOPICS, GnssSpec
+from strapdown_ros.config.base import required_section
 from strapdown_ros.core.aided.engine import AidedFilter, FilterSetup, Snapshots
 from strapdown_ros.core.aided.initial import initial_covariance, initial_error, perturbed_state
 from strapdown_ros.core.aided.layout import B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL
@@ -54,6 +55,7 @@ from strapdown_ros.core.navigation.errors import (
     position_error_ned,
     velocity_error_ned,
 )
+from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
     COVARIANCE_TYPE_KNOWN,
     SERVICE_UNKNOWN,
@@ -64,6 +66,7 @@ from strapdown_ros.messages import (
     navsatfix_fields_from_geodetic,
     odometry_fields_from_ecef,
     odometry_state,
+    twist_covariance_flu,
     vector3_stamped_fields,
 )
 from strapdown_ros.plan.model import TopicPlan
@@ -82,7 +85,6 @@ __all__ = [
     "aided_topic_types",
 ]
 
-Log = Callable[[str], None]
 F64 = np.ndarray
 
 #: Variance floors of a measurement whose message gives 0 (an ideal sensor): GNSS position m²,
@@ -121,18 +123,8 @@ _MSGTYPE = {
 }
 _ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # NED <-> ENU
 _FLU = np.array([1.0, -1.0, -1.0])  # FRD <-> FLU
-_FLU6 = np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
-
-
-def _quiet(_: str) -> None:
-    return None
-
-
 def _require(scenario: Scenario) -> AidedSpec:
-    spec = aided_spec(scenario)
-    if spec is None:
-        raise ScenarioError("aided", "missing or disabled: the scenario has no aided filter")
-    return spec
+    return required_section(scenario, "aided")
 
 
 def aided_sensors(scenario: Scenario) -> list[str]:
@@ -272,8 +264,8 @@ class AidedStage:
         Messages produced per topic.
     """
 
-    def __init__(self, scenario: Scenario, *, info: Log = _quiet, warn: Log = _quiet,
-                 error: Log = _quiet) -> None:  # fmt: skip
+    def __init__(self, scenario: Scenario, *, info: Log = quiet, warn: Log = quiet,
+                 error: Log = quiet) -> None:  # fmt: skip
         self.scenario = scenario
         self.spec = spec = _require(scenario)
         self.info, self.warn, self.error = info, warn, error
@@ -787,7 +779,7 @@ class AidedStage:
                        self._rate_variance)  # fmt: skip
         k = len(stamps)
         frame = self.spec.frame_id
-        twist = rep.twist_cov_frd * _FLU6[None, :, None] * _FLU6[None, None, :]
+        twist = twist_covariance_flu(rep.twist_cov_frd)
         out: dict[str, Any] = {"odom": odometry_fields_from_ecef(
             stamps, rep.r_e, rep.v_e, rep.c_b_e, rep.omega_eb_b, frame, self.earth_frame,
             pose_covariance=rep.pose_cov.reshape(k, 36), twist_covariance=twist.reshape(k, 36))}

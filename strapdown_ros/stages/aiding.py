@@ -25,7 +25,6 @@ equations, frames and presets in docs/aiding.md.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -49,6 +48,7 @@ from strapdown_ros.core.aiding.magnetometer import MagnetometerErrorModel, igrf_
 from strapdown_ros.core.aiding.odometer import OdometerErrorModel, contact_point_velocity
 from strapdown_ros.core.earth import dcm_ned_to_ecef, ecef_to_geodetic
 from strapdown_ros.core.rotations import frd_to_flu
+from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
     COVARIANCE_TYPE_DIAGONAL_KNOWN,
     COVARIANCE_TYPE_UNKNOWN,
@@ -65,7 +65,6 @@ from strapdown_ros.stages.intake import (
     InputEvents,
     decode_runs,
     format_stamp,
-    quiet,
     screen,
     stamp_span,
     stretches,
@@ -86,7 +85,6 @@ __all__ = [
     "igrf_coefficients",
 ]
 
-Log = Callable[[str], None]
 
 #: Variance given to twist components a sensor does not measure (the angular rates).
 NOT_MEASURED_VARIANCE = 1e6

@@ -21,8 +21,6 @@ bag and the live topic carry the same bytes.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from strapdown_ros.bag import cdr
@@ -30,6 +28,7 @@ from strapdown_ros.bag.batches import Batch, batch
 from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.imu_errors import ImuErrorsSpec
 from strapdown_ros.core.imu_errors import ImuErrorModel
+from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
     COVARIANCE_NOT_PROVIDED,
     ImuFields,
@@ -40,7 +39,6 @@ from strapdown_ros.stages.intake import (
     InputEvents,
     decode_runs,
     format_stamp,
-    quiet,
     screen,
     stamp_verdict,
 )
@@ -53,7 +51,6 @@ __all__ = [
     "measured_imu_fields",
 ]
 
-Log = Callable[[str], None]
 
 def imu_errors_spec(scenario: Scenario) -> ImuErrorsSpec:
     """The scenario's ``imu_errors`` section (ScenarioError ``imu_errors`` if it has none)."""

@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from strapdown_ros.logs import Log
+
 __all__ = [
     "MAX_LATE_CYCLES",
     "InputEvents",
@@ -26,7 +28,6 @@ __all__ = [
     "decode_runs",
     "format_stamp",
     "nonfinite_rows",
-    "quiet",
     "screen",
     "stamp_span",
     "stamp_verdict",
@@ -34,7 +35,6 @@ __all__ = [
     "without_rows",
 ]
 
-Log = Callable[[str], None]
 
 #: A stamp more than this many periods behind the last one received: the source restarted
 #: (fewer: a late, out-of-order message).
@@ -43,11 +43,6 @@ MAX_LATE_CYCLES = 10
 #: unit quaternion written in float64), and above which it is degenerate (dropped).
 QUATERNION_ROUNDOFF = 1e-9
 QUATERNION_DEGENERATE = 1e-3
-
-
-def quiet(_: str) -> None:
-    """A log sink that discards the line."""
-    return None
 
 
 def format_stamp(stamp_ns: int) -> str:

@@ -10,7 +10,7 @@ docs/navigator.md; the node's behaviour: docs/nodes.md.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +25,7 @@ from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.navigation import (
     NavState,
 )
+from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
     EarthState,
     ImuFields,
@@ -37,7 +38,6 @@ from strapdown_ros.stages.intake import (
     decode_one,
     format_stamp,
     nonfinite_rows,
-    quiet,
     screen,
     stamp_verdict,
     stretches,
@@ -66,7 +66,6 @@ __all__ = [
     "navigate_messages",
 ]
 
-Log = Callable[[str], None]
 Message = tuple[str, int, bytes]
 
 

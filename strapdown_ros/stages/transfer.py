@@ -21,15 +21,16 @@ master's attitude error) and P0 carries that correlation.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
-from strapdown_ros.config import Scenario, ScenarioError
-from strapdown_ros.config.transfer import TransferAlignmentSpec, transfer_spec
+from strapdown_ros.config import Scenario
+from strapdown_ros.config.base import required_section
+from strapdown_ros.config.transfer import TransferAlignmentSpec
 from strapdown_ros.core.aided.model import SensorModels, StateOptions, build_model
 from strapdown_ros.core.aided.outputs import nees, reported
 from strapdown_ros.core.earth import (
@@ -51,10 +52,12 @@ from strapdown_ros.core.transfer.measurements import (
     start_velocity,
     transport_matrix,
 )
+from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
     imu_increments,
     odometry_fields_from_ecef,
     odometry_state,
+    twist_covariance_flu,
     vector3_stamped_fields,
 )
 from strapdown_ros.plan.model import TopicPlan
@@ -67,7 +70,6 @@ __all__ = [
     "transfer_topic_plans",
 ]
 
-Log = Callable[[str], None]
 F64 = np.ndarray
 
 #: Variance floors of the matching measurements: velocity (m/s)², attitude rad².
@@ -78,18 +80,8 @@ FLOOR_P0 = (1e-3, 1e-3)
 #: Spawn keys of the draws: master errors, mounting error, initial errors.
 STREAM_MASTER, STREAM_MOUNT, STREAM_INITIAL = 20, 21, 22
 _FLU = np.array([1.0, -1.0, -1.0])
-_FLU6 = np.array([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
-
-
-def _quiet(_: str) -> None:
-    return None
-
-
 def _require(scenario: Scenario) -> TransferAlignmentSpec:
-    spec = transfer_spec(scenario)
-    if spec is None:
-        raise ScenarioError("transfer_alignment", "the scenario has no enabled section")
-    return spec
+    return required_section(scenario, "transfer_alignment")
 
 
 def transfer_input_topics(scenario: Scenario) -> list[str]:
@@ -152,7 +144,7 @@ class TransferStage:
         Last cycle of the slave streams (the plan's variation cycles).
     """
 
-    def __init__(self, scenario: Scenario, last_cycle: int, *, info: Log = _quiet) -> None:
+    def __init__(self, scenario: Scenario, last_cycle: int, *, info: Log = quiet) -> None:
         self.scenario = sc = scenario
         self.spec = spec = _require(scenario)
         assert sc.variation is not None
@@ -435,7 +427,7 @@ class TransferStage:
         rep = reported(t, nav, est[:, :na], p[:, :na, :na], lay.model.layout, self.Ts,
                        self.rate_variance)  # fmt: skip
         k = len(m)
-        twist = rep.twist_cov_frd * _FLU6[None, :, None] * _FLU6[None, None, :]
+        twist = twist_covariance_flu(rep.twist_cov_frd)
         out: dict[str, Any] = {"odom": odometry_fields_from_ecef(
             stamps, rep.r_e, rep.v_e, rep.c_b_e, rep.omega_eb_b, self.spec.frame_id,
             self.earth_frame, pose_covariance=rep.pose_cov.reshape(k, 36),

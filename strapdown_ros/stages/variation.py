@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +25,7 @@ from strapdown_ros.core.exact_update import Residuals
 from strapdown_ros.core.exactness import stream_residuals
 from strapdown_ros.core.stream import Stream
 from strapdown_ros.core.variation import OffsetArrays, generate_variation
+from strapdown_ros.logs import Log
 from strapdown_ros.messages import ImuFields, OdometryFields, stream_from_messages
 from strapdown_ros.stages.intake import (
     InputEvents,
@@ -48,7 +49,6 @@ __all__ = [
 ]
 
 IMU, ODOM = "imu", "odom"
-Log = Callable[[str], None]
 Message = tuple[str, int, bytes]  # (topic, stamp_ns, serialized payload)
 
 
