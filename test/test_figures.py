@@ -42,7 +42,8 @@ FIGURE = re.compile(_NUMBER + r"\s?" + _UNIT + r"(?![\w/])")
 # A backticked span that names a producing command.
 COMMAND = re.compile(
     r"`[^`]*(?:(?:bench|tools|test)/[\w/]+\.py|\b(?:bench|test)_\w+\.py|waldmann_table3\.py"
-    r"|compare_generate\.py|\w+\.py::\w+|make [a-z-]+|strapdown-sim [a-z]+|pytest|\.ci/run)[^`]*`"
+    r"|compare_generate\.py|\w+\.py::\w+|make [a-z-]+|strapdown-sim [a-z]+|pytest|\.ci/run"
+    r"|-m strapdown_ros(?:\.\w+)+)[^`]*`"
 )
 
 
