@@ -42,6 +42,7 @@ TESTS: dict[str, list[str]] = {
         "test/test_variation_core.py",
         "test/test_variation_geometry.py",
         "test/test_savage_example.py",
+        "test/test_variation_mutants.py",
     ],
     "core/exact_update.py": [
         "test/test_exact_update.py",
