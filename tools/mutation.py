@@ -64,7 +64,11 @@ TESTS: dict[str, list[str]] = {
         "test/test_messages_mutants.py",
     ],
     "messages/odometry.py": ["test/test_messages.py", "test/test_odometry_mutants.py"],
-    "messages/navsatfix.py": ["test/test_messages.py", "test/test_messages_mutants.py"],
+    "messages/navsatfix.py": [
+        "test/test_messages.py",
+        "test/test_messages_mutants.py",
+        "test/test_navsatfix_mutants.py",
+    ],
 }
 
 
