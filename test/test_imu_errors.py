@@ -597,14 +597,14 @@ def test_scenario_topic_rules_name_the_key():
         parse_scenario(_scenario({"output_topic": "/variation/odom"}, **variation))
     assert str(info.value) == "imu_errors.output_topic: /variation/odom is another stream's topic"
     ok = parse_scenario(_scenario({"output_topic": "/measured"}, **variation))
-    assert ok.imu_errors.topics(ok.recording.topics) == ("/variation/imu", "/measured")
+    assert ok.imu_errors[0].topics(ok.recording.topics) == ("/variation/imu", "/measured")
     for topic in ("/reference/imu", "/variation/imu", "/variation/reference/imu"):
         parse_scenario(_scenario({"input_topic": topic}, **variation))
     renamed = {"recording": {"topics": {"variation_imu": "/v/imu"}}}
     with pytest.raises(ScenarioError, match=r"^imu_errors\.input_topic: /variation/imu is not"):
         parse_scenario(_scenario({"input_topic": "/variation/imu"}, **variation, **renamed))
     ok = parse_scenario(_scenario({}, **variation, **renamed))
-    assert ok.imu_errors.topics(ok.recording.topics) == ("/v/imu", "/variation/imu_measured")
+    assert ok.imu_errors[0].topics(ok.recording.topics) == ("/v/imu", "/variation/imu_measured")
 
 
 def test_bag_metadata_names_the_given_preset_and_seed():

@@ -76,7 +76,7 @@ def offline(bag, scenario) -> list[bytes]:
     """The measured payloads of the whole ideal stream, by one call on all of it."""
     _, contents = bag
     ideal = contents[IN]
-    model = ImuErrorModel(scenario.imu_errors.parameters(), scenario.period_ns * 1e-9)
+    model = ImuErrorModel(scenario.imu_errors[0].parameters(), scenario.period_ns * 1e-9)
     return [bytes(p) for p in cdr.serialize(measured_imu_fields(ideal, model, scenario.period_ns))]
 
 
@@ -112,7 +112,7 @@ def test_measured_messages_follow_the_model_and_rep145(bag, scenario, offline):
     np.testing.assert_allclose(cov_a, np.broadcast_to(np.eye(3) * var_a, cov_a.shape), rtol=1e-12)
     # Minus the run's deterministic errors (bias, S + M, g-sensitivity), computed here in FRD
     # from the realized constants, the rest is white noise of the published variance.
-    model = ImuErrorModel(scenario.imu_errors.parameters(), T)
+    model = ImuErrorModel(scenario.imu_errors[0].parameters(), T)
     params = model.params
     ideal_inc = imu_increments(ideal, scenario.period_ns)
     meas_inc = imu_increments(measured, scenario.period_ns)
