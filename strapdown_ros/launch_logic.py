@@ -86,7 +86,7 @@ class NodePlan:
     executable: str = ""
 
     def __post_init__(self) -> None:
-        self.executable = self.executable or self.name
+        object.__setattr__(self, "executable", self.executable or self.name)
 
 
 @dataclass

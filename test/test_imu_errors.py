@@ -570,16 +570,20 @@ def test_scenario_rejects_bad_imu_errors_at_load():
     assert info.value.key == "imu_errors.accel_vrw_mpsph", str(info.value)
     assert str(info.value) == "imu_errors.accel_vrw_mpsph: must be >= 0, got [1, 2, -3]"
     with pytest.raises(ScenarioError) as info:
-        parse_scenario(_scenario([1, 2]))
+        parse_scenario(_scenario("tactical"))
     assert info.value.key == "imu_errors"
+    assert "a mapping (one model) or a list of them" in str(info.value)
+    with pytest.raises(ScenarioError) as info:  # a list: each element a mapping
+        parse_scenario(_scenario([{"preset": "tactical"}, 2]))
+    assert info.value.key == "imu_errors[1]"
     ok = parse_scenario(
         _scenario({"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"})
     )
-    assert isinstance(ok.imu_errors, ImuErrorsSpec)
-    assert ok.imu_errors == _spec(
-        {"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"}
+    assert ok.imu_errors == (
+        _spec({"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"}),
     )
-    assert parse_scenario(_scenario(None)).imu_errors is None
+    assert parse_scenario(_scenario(None)).imu_errors == ()
+    assert parse_scenario(_scenario([])).imu_errors == ()
 
 
 def test_scenario_topic_rules_name_the_key():

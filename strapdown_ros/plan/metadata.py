@@ -37,7 +37,8 @@ def bag_custom_data(plan: Plan) -> dict[str, str]:
     for i, spec in enumerate(models):
         for key in ("preset", "seed"):  # the ones the file gives
             if key in spec.model_fields_set:
-                data[f"{imu_errors_key(i, len(models))}.{key}"] = str(getattr(spec, key))
+                data[f"{imu_errors_key(i, 1 if i == 0 else len(models))}.{key}"] = str(
+                    getattr(spec, key))  # fmt: skip
     if scenario.aiding is not None:  # the section as resolved (presets filled in), for the report
         data["aiding"] = scenario.aiding.model_dump_json(exclude_none=True)
     return data
