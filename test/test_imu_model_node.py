@@ -50,7 +50,7 @@ M_VAR = 398  # variation cycles 0..398 of the 400 reference cycles at 200 Hz
 IMU_ERRORS = (
     "imu_errors={preset: tactical, seed: 3, gyro_quantum_rad: 1.0e-9, accel_quantum_mps: 1.0e-8}"
 )
-OVERRIDES = [IMU_ERRORS, "navigator=null"]
+OVERRIDES = [IMU_ERRORS, "navigator=null", "aided=null"]  # one model, on the variation IMU
 IN, OUT, ODOM = "/variation/imu", "/variation/imu_measured", "/variation/odom"
 TIMEOUT_S = 60.0
 #: Faults of the replay test: cycle DROP is missing, SWAP and SWAP+1 swapped, DUP repeated.
@@ -195,7 +195,8 @@ def test_the_scenario_checks_the_topics():
     when the scenario loads (``validate``, ``generate`` and the node alike)."""
     with pytest.raises(ScenarioError) as info:
         load_scenario(SCENARIO, ["variation=null", "navigator=null"], DURATION_S)
-    assert info.value.key == "imu_errors.input_topic" and "/reference/imu" in info.value.problem
+    # default.yaml's first model reads /variation/imu
+    assert info.value.key == "imu_errors[0].input_topic" and "/reference/imu" in info.value.problem
     with pytest.raises(ScenarioError, match="imu_errors.input_topic"):
         load_scenario(  # default input /variation/imu: not generated
             SCENARIO,
@@ -212,7 +213,7 @@ def test_the_scenario_checks_the_topics():
     assert stages["imu_errors"].output_topic == "/variation/imu_measured"
     with pytest.raises(ScenarioError, match="imu_errors.output_topic"):
         load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
-    plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null"]))
+    plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null", "aided=null"]))
     assert "imu_errors" not in dict(offline_stages(plan))
 
 

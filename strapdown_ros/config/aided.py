@@ -277,7 +277,8 @@ def check_aided(
         raise ScenarioError(
             "aided.imu_topic",
             "no measured IMU: the aided filter runs on the output of an imu_errors model whose "
-            f"input is {reference} (add an imu_errors section with input_topic: {reference})",
+            f"input is {reference} (add an imu_errors model with input_topic: {reference}, or "
+            "remove the aided section: aided=null)",
         )
     source = next((src for src, out in measured if out == imu), None)
     if source != reference:
