@@ -209,8 +209,9 @@ def test_the_scenario_checks_the_topics():
         DURATION_S,
     )
     stages = dict(offline_stages(resolve_plan(ok)))
-    assert stages["imu_errors"].input_topic == "/reference/imu"
-    assert stages["imu_errors"].output_topic == "/variation/imu_measured"
+    (stage,) = stages["imu_errors"].stages  # one model
+    assert stage.input_topic == "/reference/imu"
+    assert stage.output_topic == "/variation/imu_measured"
     with pytest.raises(ScenarioError, match="imu_errors.output_topic"):
         load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
     plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null", "aided=null"]))
