@@ -63,9 +63,13 @@ class ImuModelNode(BatchedInputNode):
             warn=lambda msg: log.warning(msg),
             error=lambda msg: log.error(msg),
         )
-        # Δv / Δq beside the measured IMU (recording.increments)
-        names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
-        plan = resolve_plan(scenario.with_recording(topics=names))
+        # Δv / Δq beside the measured IMU (recording.increments), on the scenario's plan; an
+        # output_topic parameter renames the measured stream (the sections reading it follow)
+        planned = scenario
+        if self.output_topic != default_out:
+            names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
+            planned = scenario.with_recording(topics=names)
+        plan = resolve_plan(planned)
         self.last_cycle = plan.last_cycle(self.input_topic)
         self.add_output(self.output_topic, cdr.IMU, "output_topic")
         self.frames = TFStage(plan, variation_tf=False)
