@@ -318,7 +318,7 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     [
         ([], r"parameter 'scenario': is required"),
         (
-            [f"scenario:={SCENARIO}", "overrides:=['imu_errors=null']"],
+            [f"scenario:={SCENARIO}", "overrides:=['imu_errors=null', 'aided=null']"],
             r"invalid scenario: imu_errors: missing",
         ),
         (
@@ -331,22 +331,30 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
         ),
         (
             [f"scenario:={SCENARIO}", "overrides:=['variation=null', 'navigator=null']"],
-            r"invalid scenario: imu_errors\.input_topic: /variation/imu is not an ideal IMU topic",
+            r"invalid scenario: imu_errors\[0\]\.input_topic: /variation/imu is not an ideal IMU "
+            r"topic",
         ),
         (
-            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", f"output_topic:={IN}"],
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}', 'aided=null']",
+             f"output_topic:={IN}"],
             r"parameter 'output_topic': equals the input topic",
         ),
         (
-            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", "qos_depth:=0"],
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}', 'aided=null']", "qos_depth:=0"],
             r"parameter 'qos_depth'",
         ),
         (
-            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", "executor:=multi"],
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}', 'aided=null']",
+             "executor:=multi"],
             r"parameter 'executor': must be one of: events, single_threaded",
         ),
+        (  # default.yaml has models 0 and 1
+            [f"scenario:={SCENARIO}", "model:=2"],
+            r"invalid scenario: imu_errors: no model 2: the scenario has 2 \(0\.\.1\)",
+        ),
     ],
-    ids=["missing", "no-imu-errors", "seed", "shape", "no-input", "same-topic", "qos", "executor"],
+    ids=["missing", "no-imu-errors", "seed", "shape", "no-input", "same-topic", "qos", "executor",
+         "no-model"],  # fmt: skip
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")
