@@ -30,7 +30,7 @@ def bag(tmp_path_factory):
         doc["variation"]["displacement_m"] = DISPLACEMENT.tolist()
         doc["variation"]["mounting_rph_deg"] = MOUNTING_RPH.tolist()
         del doc["variation"]["bending"]
-        for key in ("navigator", "imu_errors", "aiding"):
+        for key in ("navigator", "imu_errors", "aiding", "aided"):
             doc.pop(key, None)
         doc["duration_s"] = 8.0
 
