@@ -351,7 +351,8 @@ def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
     nodes = [a for a in actions if type(a).__name__ == "Node"]
     handlers = [a for a in actions if type(a).__name__ == "RegisterEventHandler"]
     assert {n.kwargs["executable"] for n in nodes} == {"bag_recorder", "trajectory_node",
-                                                       "aiding_node"}  # fmt: skip
+                                                       "imu_model_node", "aiding_node",
+                                                       "aided_node"}  # fmt: skip
     assert len(handlers) == len(nodes)
     for node, handler in zip(nodes, handlers, strict=True):
         on_exit = handler.args[0]
@@ -396,7 +397,8 @@ class Params:
 
 actions = module._nodes({context!r}, Params())
 nodes = [a for a in actions if type(a).__name__ == "Node"]
-print(json.dumps([[n.kwargs["executable"], n.kwargs["parameters"][1]] for n in nodes]))
+print(json.dumps([[n.kwargs["name"], n.kwargs["executable"], n.kwargs["parameters"][1]]
+                  for n in nodes]))
 print(sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED))
 """
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -404,7 +406,7 @@ print(sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED))
     assert proc.returncode == 0, proc.stderr
     got, loaded = proc.stdout.splitlines()
     want = launch_logic.plan_launch(context["scenario"], context["out"], duration_s=DURATION)
-    assert json.loads(got) == [[n.name, n.parameters] for n in want.nodes]
+    assert json.loads(got) == [[n.name, n.executable, n.parameters] for n in want.nodes]
     assert loaded == "[]"
 
 
