@@ -45,7 +45,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
-OVERRIDES = ["variation=null", "navigator=null", "imu_errors=null"]
+OVERRIDES = ["variation=null", "navigator=null", "imu_errors=null", "aided=null"]
 CLOCK = ("/clock", "rosgraph_msgs/msg/Clock")
 PACING = re.compile(r"pacing error over \d+ messages: p50 (\S+) ms, p99 (\S+) ms, max (\S+) ms")
 

@@ -62,7 +62,7 @@ def _nodes(context, params):
     for node in plan.nodes:
         action = Node(
             package="strapdown_ros",
-            executable=node.name,
+            executable=node.executable,
             name=node.name,
             output="screen",
             parameters=[params.perform(context), node.parameters],

@@ -77,10 +77,16 @@ class NodeFailedError(RuntimeError):
 
 @dataclass(frozen=True)
 class NodePlan:
-    """One node of the launch: its executable and the parameters set over params.yaml."""
+    """One node of the launch: its ROS node name, the parameters set over params.yaml and its
+    executable (default: ``name``; another when an executable runs more than once, as
+    ``imu_model_node`` does, once per IMU error model)."""
 
     name: str
     parameters: dict[str, Any]
+    executable: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "executable", self.executable or self.name)
 
 
 @dataclass
@@ -99,7 +105,9 @@ class LaunchPlan:
     @classmethod
     def from_json(cls, text: str) -> LaunchPlan:
         data = json.loads(text)
-        return cls(Path(data["out"]), [NodePlan(n["name"], n["parameters"]) for n in data["nodes"]])
+        nodes = [NodePlan(n["name"], n["parameters"], n.get("executable", ""))
+                 for n in data["nodes"]]  # fmt: skip
+        return cls(Path(data["out"]), nodes)
 
 
 def default_out(cwd: str | os.PathLike[str] | None = None, now: float | None = None) -> Path:
@@ -180,8 +188,25 @@ def pipeline_counts(plan: Any) -> dict[str, dict[str, int]]:
 
     nodes, subscribers = live_graph(plan)
     return {
-        n.executable: {t: subscribers[t] for t in n.published if t in subscribers} for n in nodes
+        n.node_name: {t: subscribers[t] for t in n.published if t in subscribers} for n in nodes
     }
+
+
+def pipeline_nodes(plan: Any) -> dict[str, tuple[str, dict[str, Any]]]:
+    """Node name → (its executable, the parameters saying which part of its link it runs),
+    for the nodes of :func:`pipeline_counts` (e.g. ``imu_model_node_1`` →
+    ``("imu_model_node", {"model": 1})``)."""
+    from strapdown_ros.plan.chain import live_graph
+
+    nodes, _ = live_graph(plan)
+    out = {}
+    for n in nodes:
+        params = {}
+        for p in n.params:
+            key, value = p.split(":=", 1)
+            params[key] = int(value) if value.isdigit() else value
+        out[n.node_name] = (n.executable, params)
+    return out
 
 
 def _per_topic(counts: dict[str, int]) -> list[str]:
@@ -242,9 +267,11 @@ def plan_launch(
     plan.nodes.append(NodePlan("bag_recorder", recorder))
     (source, source_counts), *downstream = counts.items()
     flow_nodes = ["bag_recorder"]
+    which = pipeline_nodes(resolved)
     for name, published in reversed(downstream):  # the order run starts them: downstream first
-        params = {**common, **node_params, "subscribers_per_topic": _per_topic(published)}
-        plan.nodes.append(NodePlan(name, params))
+        executable, own = which[name]
+        params = {**common, **own, **node_params, "subscribers_per_topic": _per_topic(published)}
+        plan.nodes.append(NodePlan(name, params, executable))
         flow_nodes.append(name)
     traj = {
         **common,

@@ -6,7 +6,9 @@ payloads, too many to pickle through the queue's pipe cheaply, so the worker spo
 piece's payloads into one file in a private directory on ``/dev/shm`` (a RAM file system; the
 system temporary directory where there is none) and sends only the stamps and the layout; the
 writing process reads the file back in one call and splits it into the very same ``bytes``
-objects. Elsewhere (no ``fork``) the producer is a thread and nothing is copied. The forked
+objects. Elsewhere (no ``fork``), or with ``STRAPDOWN_PRODUCER=thread`` in the environment (what
+the mutation runs set, so that the test process sees the code the producer runs), the producer
+is a thread and nothing is copied. The forked
 worker dies with its parent whatever ends the parent, SIGKILL included (``PR_SET_PDEATHSIG``),
 and removes the spool as it goes. Pure standard library and numpy; no ROS. Measurements:
 docs/benchmarks.md.
@@ -220,6 +222,10 @@ def _produce(items: Iterator[Piece], out: object, spool: Path | None = None,
         out.put(portable(exc) if spool is not None else exc)  # type: ignore[attr-defined]
 
 
+#: Environment variable: ``thread`` makes the producer a thread where it would fork.
+THREAD_ENV = "STRAPDOWN_PRODUCER"
+
+
 class Producer:
     """Iterate over ``items`` computed ahead in a worker; at most ``depth`` pieces wait.
 
@@ -231,7 +237,7 @@ class Producer:
     def __init__(self, items: Iterator[Piece], depth: int = 2) -> None:
         self._spool: Path | None = None
         self._queue: _PipeChannel | queue.Queue[object]
-        if "fork" in mp.get_all_start_methods():
+        if "fork" in mp.get_all_start_methods() and os.environ.get(THREAD_ENV) != "thread":
             ctx = mp.get_context("fork")
             root = _spool_root()
             _remove_stale_spools(Path(root or tempfile.gettempdir()))

@@ -35,8 +35,8 @@ REPO = Path(__file__).resolve().parent.parent
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 # the reference stream alone (no TF, no map-frame odometry: docs/interface.md)
 REFERENCE = [
-    "variation=null", "navigator=null", "imu_errors=null", "aiding=null", "tf.enabled=false",
-    "tf.map_odometry=false",
+    "variation=null", "navigator=null", "imu_errors=null", "aided=null", "aiding=null",
+    "tf.enabled=false", "tf.map_odometry=false",
 ]  # fmt: skip
 TYPES = {
     "/reference/imu": "sensor_msgs/msg/Imu",

@@ -30,7 +30,8 @@ from strapdown_ros.bag.writer import DEFAULT_QOS  # noqa: E402
 REPO = Path(__file__).resolve().parent.parent
 SCENARIO = nt.scenario_without_tf(REPO / "config" / "scenarios" / "default.yaml")
 #: The reference stream with /clock: what trajectory_node publishes (time_source sim).
-OVERRIDES = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null"]
+OVERRIDES = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null",
+             "aided=null"]
 TOPICS = ["/clock", "/reference/odom", "/reference/fix", "/reference/imu"]
 TIMEOUT_S = 90.0
 

@@ -685,8 +685,9 @@ def test_log_message_stamp():
     [
         [],
         ["navigator=null"],
-        ["navigator=null", "imu_errors=null", "variation=null", "recording.clock=true"],
-        ["navigator=null", "imu_errors.output_topic=/measured/imu"],
+        ["navigator=null", "imu_errors=null", "aided=null", "variation=null",
+         "recording.clock=true"],
+        ["navigator=null", "imu_errors.0.output_topic=/measured/imu"],
     ],
     ids=["default", "no-navigator", "reference-with-clock", "measured-renamed"],
 )

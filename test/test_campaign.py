@@ -41,7 +41,10 @@ def test_runs_are_deterministic_and_independent_of_the_campaign_size():
     plan = Campaign(DEFAULT, duration_s=5.0, seed=7)
     again = Campaign(DEFAULT, duration_s=5.0, seed=7)
     assert plan.run(37) == again.run(37)
-    assert {"imu_errors.seed", "variation.bending.random.seed"} <= set(plan.seed_keys)
+    # default.yaml lists two IMU error models: each its own seed
+    assert {"imu_errors.0.seed", "imu_errors.1.seed", "variation.bending.random.seed"} <= set(
+        plan.seed_keys
+    )
     assert all(k.endswith(".seed") for k in plan.seed_keys)  # and the aiding sensors' seeds
     seeds = [tuple(plan.run(k).seeds.values()) for k in range(50)]
     assert len(set(seeds)) == 50  # every run its own seeds
@@ -59,12 +62,12 @@ def test_vary_draws_and_validates_through_the_scenario_model():
     assert abs(heading.mean()) < 4 * 1 / np.sqrt(200) and 0.8 < heading.std() < 1.2
     scenario = plan.scenario(plan.run(3))
     assert list(scenario.navigator.initial_errors.attitude_rph_deg) == draws[3]
-    u = parse_vary("imu_errors.gyro_bias_dph=uniform(-2, 2)")
+    u = parse_vary("imu_errors.0.gyro_bias_dph=uniform(-2, 2)")
     values = [Campaign(DEFAULT, varies=[u]).run(k).draws[u.key] for k in range(20)]
     assert all(-2 <= x <= 2 for x in values)
     with pytest.raises(ScenarioError) as info:
-        Campaign(DEFAULT, varies=[parse_vary("imu_errors.gyro_arw=normal(0, 1)")])
-    assert info.value.key == "imu_errors.gyro_arw"
+        Campaign(DEFAULT, varies=[parse_vary("imu_errors.0.gyro_arw=normal(0, 1)")])
+    assert info.value.key == "imu_errors[0].gyro_arw"
     for bad in ("x=normal(1)", "x=gauss(0, 1)", "x=normal(0, -1)", "x=uniform(2, 1)",
                 "x=normal([0, 0], [1])", "normal(0, 1)", "x=normal(a, 1)"):  # fmt: skip
         with pytest.raises(ScenarioError):
@@ -138,7 +141,7 @@ def test_run_k_equals_generate_and_an_interrupted_campaign_resumes(tmp_path):
 def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
     out = tmp_path / "campaign"
     # a normal draw of a standard deviation goes negative in some runs: those runs fail
-    vary = ["imu_errors.gyro_arw_dpsh=normal(0.05, 0.1)"]
+    vary = ["imu_errors.0.gyro_arw_dpsh=normal(0.05, 0.1)"]
     plan = Campaign(DEFAULT, duration_s=3.0, varies=[parse_vary(vary[0])])
     draws = [plan.run(k).draws[vary[0].split("=")[0]] for k in range(4)]
     bad = {k for k, d in enumerate(draws) if d < 0}
@@ -147,7 +150,7 @@ def test_a_failing_run_is_reported_and_the_others_finish(tmp_path):
     result = run_campaign(DEFAULT, out, 4, duration_s=3.0, vary=vary, workers=2,
                           log=messages.append)  # fmt: skip
     assert set(result.failed) == bad
-    assert all("imu_errors.gyro_arw_dpsh" in why for why in result.failed.values())
+    assert all("imu_errors[0].gyro_arw_dpsh" in why for why in result.failed.values())
     assert finished_runs(out) == set(range(4)) - bad
     assert any(f"run {min(bad):04d} failed" in m for m in messages)
     assert "Failed runs" in (out / "report" / "campaign.md").read_text()

@@ -47,10 +47,10 @@ def test_digest_follows_what_the_runs_depend_on(tmp_path):
     assert "industrial" in edited.read_text()
     others = [
         Campaign(edited, [], 3.0),
-        Campaign(path, ["imu_errors.preset=industrial"], 3.0),
+        Campaign(path, ["imu_errors.0.preset=industrial"], 3.0),
         Campaign(path, [], 4.0),
         Campaign(path, [], 3.0, seed=1),
-        Campaign(path, [], 3.0, [parse_vary("imu_errors.gyro_arw_dpsh=uniform(0.01, 0.02)")]),
+        Campaign(path, [], 3.0, [parse_vary("imu_errors.0.gyro_arw_dpsh=uniform(0.01, 0.02)")]),
     ]
     digests = [c.inputs_digest() for c in others]
     assert base not in digests and len(set(digests)) == len(digests)
@@ -101,7 +101,7 @@ def test_resume_refuses_an_edited_scenario(tmp_path):
     # an override that changes the inputs is named
     path.write_text(text)
     with pytest.raises(CampaignMismatchError, match="common"):
-        run_campaign(path, out, 3, overrides=["imu_errors.preset=industrial"], duration_s=3.0,
+        run_campaign(path, out, 3, overrides=["imu_errors.0.preset=industrial"], duration_s=3.0,
                      workers=1, log=quiet)  # fmt: skip
     # the same inputs from another path resume
     moved = _copy(tmp_path, "moved.yaml")

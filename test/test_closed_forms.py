@@ -47,7 +47,7 @@ def static_run(tmp_path, duration_s, rate_hz, n, errors):
 
 
 def closed(scenario, t):
-    params = scenario.imu_errors.parameters()
+    params = scenario.imu_errors[0].parameters()
     return cf.static_errors(t, SITE, accel_ned=params.accel.bias, gyro_ned=params.gyro.bias)
 
 

@@ -11,8 +11,7 @@ from strapdown_ros.core.imu_errors import ImuErrorModel, ImuErrorParameters
 
 
 def _params(seed: int) -> ImuErrorParameters:
-    spec = load_scenario("config/scenarios/default.yaml").imu_errors
-    assert spec is not None
+    spec = load_scenario("config/scenarios/default.yaml").imu_errors[0]  # the variation IMU
     p = spec.parameters()
     return ImuErrorParameters(p.gyro, p.accel, seed)
 

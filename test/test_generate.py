@@ -159,6 +159,8 @@ def test_samples_kind_round_trip_through_csv(tmp_path):
 
 
 NAV_TOPICS = ("odom", "fix", "error/position", "error/velocity", "error/attitude")
+AIDED_STATE_TOPICS = (*NAV_TOPICS, "vel", "nees", "bias/gyro", "bias/accel", "bias/gyro_sigma",
+                      "bias/accel_sigma")
 
 
 @pytest.mark.slow
@@ -177,6 +179,14 @@ def test_default_scenario_reintegration_drift_below_1e4_m(tmp_path):
         "/variation/reference/imu": 119_998,
         "/variation/reference/odom": 119_999,
         "/variation/imu_measured": 119_998,  # imu_errors (tactical preset) on /variation/imu
+        "/reference/imu_measured": 120_000,  # the second model, on /reference/imu
+        # the aided filter: state outputs at 10 Hz (the initial epoch and 6000 more), an
+        # innovation and a NIS per aiding message it uses
+        **{f"/aided/{t}": 6001 for t in AIDED_STATE_TOPICS},
+        **{f"/aided/{k}/gnss_position": 3001 for k in ("innovation", "nis")},
+        **{f"/aided/{k}/gnss_velocity": 3001 for k in ("innovation", "nis")},
+        **{f"/aided/{k}/baro": 15_001 for k in ("innovation", "nis")},
+        **{f"/aided/{k}/mag": 30_001 for k in ("innovation", "nis")},
         # the navigator (N = 10) on /variation/imu: the initial state and 11 999 T_nav cycles
         **{f"/navigator/{t}": 12_000 for t in NAV_TOPICS},
         # aiding (issue 16): GNSS at 5 Hz, barometer at 25 Hz, magnetometer at 50 Hz

@@ -570,16 +570,20 @@ def test_scenario_rejects_bad_imu_errors_at_load():
     assert info.value.key == "imu_errors.accel_vrw_mpsph", str(info.value)
     assert str(info.value) == "imu_errors.accel_vrw_mpsph: must be >= 0, got [1, 2, -3]"
     with pytest.raises(ScenarioError) as info:
-        parse_scenario(_scenario([1, 2]))
+        parse_scenario(_scenario("tactical"))
     assert info.value.key == "imu_errors"
+    assert "a mapping (one model) or a list of them" in str(info.value)
+    with pytest.raises(ScenarioError) as info:  # a list: each element a mapping
+        parse_scenario(_scenario([{"preset": "tactical"}, 2]))
+    assert info.value.key == "imu_errors[1]"
     ok = parse_scenario(
         _scenario({"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"})
     )
-    assert isinstance(ok.imu_errors, ImuErrorsSpec)
-    assert ok.imu_errors == _spec(
-        {"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"}
+    assert ok.imu_errors == (
+        _spec({"preset": "industrial", "seed": 3, "input_topic": "/reference/imu"}),
     )
-    assert parse_scenario(_scenario(None)).imu_errors is None
+    assert parse_scenario(_scenario(None)).imu_errors == ()
+    assert parse_scenario(_scenario([])).imu_errors == ()
 
 
 def test_scenario_topic_rules_name_the_key():
@@ -597,14 +601,14 @@ def test_scenario_topic_rules_name_the_key():
         parse_scenario(_scenario({"output_topic": "/variation/odom"}, **variation))
     assert str(info.value) == "imu_errors.output_topic: /variation/odom is another stream's topic"
     ok = parse_scenario(_scenario({"output_topic": "/measured"}, **variation))
-    assert ok.imu_errors.topics(ok.recording.topics) == ("/variation/imu", "/measured")
+    assert ok.imu_errors[0].topics(ok.recording.topics) == ("/variation/imu", "/measured")
     for topic in ("/reference/imu", "/variation/imu", "/variation/reference/imu"):
         parse_scenario(_scenario({"input_topic": topic}, **variation))
     renamed = {"recording": {"topics": {"variation_imu": "/v/imu"}}}
     with pytest.raises(ScenarioError, match=r"^imu_errors\.input_topic: /variation/imu is not"):
         parse_scenario(_scenario({"input_topic": "/variation/imu"}, **variation, **renamed))
     ok = parse_scenario(_scenario({}, **variation, **renamed))
-    assert ok.imu_errors.topics(ok.recording.topics) == ("/v/imu", "/variation/imu_measured")
+    assert ok.imu_errors[0].topics(ok.recording.topics) == ("/v/imu", "/variation/imu_measured")
 
 
 def test_bag_metadata_names_the_given_preset_and_seed():

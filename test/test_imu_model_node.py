@@ -50,7 +50,7 @@ M_VAR = 398  # variation cycles 0..398 of the 400 reference cycles at 200 Hz
 IMU_ERRORS = (
     "imu_errors={preset: tactical, seed: 3, gyro_quantum_rad: 1.0e-9, accel_quantum_mps: 1.0e-8}"
 )
-OVERRIDES = [IMU_ERRORS, "navigator=null"]
+OVERRIDES = [IMU_ERRORS, "navigator=null", "aided=null"]  # one model, on the variation IMU
 IN, OUT, ODOM = "/variation/imu", "/variation/imu_measured", "/variation/odom"
 TIMEOUT_S = 60.0
 #: Faults of the replay test: cycle DROP is missing, SWAP and SWAP+1 swapped, DUP repeated.
@@ -76,7 +76,7 @@ def offline(bag, scenario) -> list[bytes]:
     """The measured payloads of the whole ideal stream, by one call on all of it."""
     _, contents = bag
     ideal = contents[IN]
-    model = ImuErrorModel(scenario.imu_errors.parameters(), scenario.period_ns * 1e-9)
+    model = ImuErrorModel(scenario.imu_errors[0].parameters(), scenario.period_ns * 1e-9)
     return [bytes(p) for p in cdr.serialize(measured_imu_fields(ideal, model, scenario.period_ns))]
 
 
@@ -112,7 +112,7 @@ def test_measured_messages_follow_the_model_and_rep145(bag, scenario, offline):
     np.testing.assert_allclose(cov_a, np.broadcast_to(np.eye(3) * var_a, cov_a.shape), rtol=1e-12)
     # Minus the run's deterministic errors (bias, S + M, g-sensitivity), computed here in FRD
     # from the realized constants, the rest is white noise of the published variance.
-    model = ImuErrorModel(scenario.imu_errors.parameters(), T)
+    model = ImuErrorModel(scenario.imu_errors[0].parameters(), T)
     params = model.params
     ideal_inc = imu_increments(ideal, scenario.period_ns)
     meas_inc = imu_increments(measured, scenario.period_ns)
@@ -195,7 +195,8 @@ def test_the_scenario_checks_the_topics():
     when the scenario loads (``validate``, ``generate`` and the node alike)."""
     with pytest.raises(ScenarioError) as info:
         load_scenario(SCENARIO, ["variation=null", "navigator=null"], DURATION_S)
-    assert info.value.key == "imu_errors.input_topic" and "/reference/imu" in info.value.problem
+    # default.yaml's first model reads /variation/imu
+    assert info.value.key == "imu_errors[0].input_topic" and "/reference/imu" in info.value.problem
     with pytest.raises(ScenarioError, match="imu_errors.input_topic"):
         load_scenario(  # default input /variation/imu: not generated
             SCENARIO,
@@ -208,11 +209,12 @@ def test_the_scenario_checks_the_topics():
         DURATION_S,
     )
     stages = dict(offline_stages(resolve_plan(ok)))
-    assert stages["imu_errors"].input_topic == "/reference/imu"
-    assert stages["imu_errors"].output_topic == "/variation/imu_measured"
+    (stage,) = stages["imu_errors"].stages  # one model
+    assert stage.input_topic == "/reference/imu"
+    assert stage.output_topic == "/variation/imu_measured"
     with pytest.raises(ScenarioError, match="imu_errors.output_topic"):
         load_scenario(SCENARIO, ["imu_errors={output_topic: /variation/odom}"], DURATION_S)
-    plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null"]))
+    plan = resolve_plan(load_scenario(SCENARIO, ["imu_errors=null", "aided=null"]))
     assert "imu_errors" not in dict(offline_stages(plan))
 
 
@@ -316,7 +318,7 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
     [
         ([], r"parameter 'scenario': is required"),
         (
-            [f"scenario:={SCENARIO}", "overrides:=['imu_errors=null']"],
+            [f"scenario:={SCENARIO}", "overrides:=['imu_errors=null', 'aided=null']"],
             r"invalid scenario: imu_errors: missing",
         ),
         (
@@ -329,22 +331,30 @@ def test_node_gap_out_of_order_duplicate(bag, scenario, offline, procs, ros_env,
         ),
         (
             [f"scenario:={SCENARIO}", "overrides:=['variation=null', 'navigator=null']"],
-            r"invalid scenario: imu_errors\.input_topic: /variation/imu is not an ideal IMU topic",
+            r"invalid scenario: imu_errors\[0\]\.input_topic: /variation/imu is not an ideal IMU "
+            r"topic",
         ),
         (
-            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", f"output_topic:={IN}"],
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}', 'aided=null']",
+             f"output_topic:={IN}"],
             r"parameter 'output_topic': equals the input topic",
         ),
         (
-            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", "qos_depth:=0"],
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}', 'aided=null']", "qos_depth:=0"],
             r"parameter 'qos_depth'",
         ),
         (
-            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}']", "executor:=multi"],
+            [f"scenario:={SCENARIO}", f"overrides:=['{IMU_ERRORS}', 'aided=null']",
+             "executor:=multi"],
             r"parameter 'executor': must be one of: events, single_threaded",
         ),
+        (  # default.yaml has models 0 and 1
+            [f"scenario:={SCENARIO}", "model:=2"],
+            r"invalid scenario: imu_errors: no model 2: the scenario has 2 \(0\.\.1\)",
+        ),
     ],
-    ids=["missing", "no-imu-errors", "seed", "shape", "no-input", "same-topic", "qos", "executor"],
+    ids=["missing", "no-imu-errors", "seed", "shape", "no-input", "same-topic", "qos", "executor",
+         "no-model"],  # fmt: skip
 )
 def test_invalid_input_exits_2(params, expected, ros_env):
     pytest.importorskip("rclpy", reason="rclpy (ros-jazzy-rclpy wheels) not installed")

@@ -21,7 +21,7 @@ E2 = F * (2.0 - F)
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory):
     def rotating(doc):
-        for key in ("variation", "navigator", "imu_errors", "aiding"):
+        for key in ("variation", "navigator", "imu_errors", "aiding", "aided"):
             doc.pop(key, None)
         doc["duration_s"] = 4.0
         doc["trajectory"]["segments"] = [

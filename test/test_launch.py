@@ -128,7 +128,8 @@ def test_launch_description(name: str, tmp_path) -> None:
     actions = opaque.execute(context)
     nodes = [a for a in actions if isinstance(a, Node)]
     want = plan_launch(str(SCENARIOS / name), str(tmp_path / "o"), duration_s=2.0)
-    assert [n.node_executable for n in nodes] == [n.name for n in want.nodes]
+    assert [n.node_executable for n in nodes] == [n.executable for n in want.nodes]
+    assert [n.node_name for n in nodes] == [n.name for n in want.nodes]
     assert sum(isinstance(a, RegisterEventHandler) for a in actions) == len(nodes)
 
 
@@ -230,7 +231,9 @@ def test_a_failing_node_stops_the_launch_at_once(tmp_path, ros_env) -> None:
 
 def test_params_file_names_only_declared_parameters() -> None:
     params = yaml.safe_load(PARAMS.read_text())
-    assert set(params) == set(NODES)
+    # sections by node name: every executable, and imu_model_node_1 (imu_model_node, model 1)
+    assert set(params) == {*NODES, "imu_model_node_1"}
+    assert params["imu_model_node_1"]["ros__parameters"]["model"] == 1
     nodes_dir = REPO / "strapdown_ros" / "nodes"
     # the nodes' shared modules (parameters, qos, lifecycle, ...), not the other executables
     shared = "".join(
@@ -239,7 +242,7 @@ def test_params_file_names_only_declared_parameters() -> None:
         if not p.stem.endswith("_node") and not p.stem.startswith("bag_")
     )
     for node, body in params.items():
-        source = (nodes_dir / f"{node}.py").read_text() + shared
+        source = (nodes_dir / f"{re.sub(r'_[0-9]+$', '', node)}.py").read_text() + shared
         for name in body["ros__parameters"]:
             assert re.search(rf'declare_\w+\(\s*(self|node),\s*"{name}"', source), (node, name)
 
@@ -253,12 +256,16 @@ def test_nodes_with_params_file_in_worst_start_order(tmp_path, ros_env) -> None:
     from strapdown_ros.plan import resolve_plan
     from strapdown_ros.plan.chain import live_graph
 
-    # the nodes default.yaml needs (aided_node, in params.yaml too, needs an aided section)
-    needed = {n.executable for n in live_graph(resolve_plan(load_scenario(SCENARIO)))[0]}
+    # the nodes default.yaml needs (two imu_model_node: imu_model_node and imu_model_node_1),
+    # in the order of NODES (the chain's, downstream last: the worst order)
+    graph = live_graph(resolve_plan(load_scenario(SCENARIO)))[0]
+    needed = [(n.node_name, n.executable) for n in graph] + [("bag_recorder", "bag_recorder")]
+    needed.sort(key=lambda item: NODES.index(item[1]))
     procs = []
     try:
-        for node in (n for n in NODES if n in needed or n == "bag_recorder"):
-            args = [executable(node), "--ros-args", "--params-file", str(PARAMS)]
+        for node, exe in needed:
+            args = [executable(exe), "--ros-args", "--params-file", str(PARAMS)]
+            args += ["-r", f"__node:={node}"] if node != exe else []
             args += ["-p", f"scenario:={SCENARIO}"]
             args += ["-p", f"output:={live}"] if node == "bag_recorder" else []
             args += ["-p", f"duration_s:={duration}"] if node != "bag_recorder" else []

@@ -65,8 +65,8 @@ def _run_children(scenario: Path, tmp_path: Path, rate_factor: float) -> dict[st
     class FakeChild:
         def __init__(self, name, args, env, log_dir):
             self.name, self.proc, self.cpu_s = name, FakeProc(), None
-            params = [args[i + 1] for i, a in enumerate(args) if a == "-p"]
-            started[name] = params
+            params = [args[i + 1] for i, a in enumerate(args) if a in ("-p", "-r")]
+            started[name] = params  # parameters and remaps (-r __node:=NAME)
             if name == "trajectory_node":
                 raise _StopError
 
@@ -108,14 +108,26 @@ def _as_list(text: str) -> list[str]:
 @pytest.mark.parametrize("name", ["default.yaml", "car.yaml", "aided_car_noisy.yaml"])
 @pytest.mark.parametrize("rate_factor", [1.0, 5.0])
 def test_counts_and_nodes_equal_strapdown_sim_run(name, rate_factor, tmp_path) -> None:
-    """Shipped scenarios, and a test scenario with an aided section (aided_node)."""
+    """Shipped scenarios (default.yaml: two imu_errors models, two imu_model_node processes),
+    and a test scenario; all three have an aided section (aided_node)."""
     path = SCENARIOS / name if (SCENARIOS / name).exists() else REPO / "test" / "data" / name
     run = _run_children(path, tmp_path, rate_factor)
     plan = launch_logic.plan_launch(
         str(path), str(tmp_path / "launch_out"), duration_s=DURATION, rate_factor=rate_factor,
     )  # fmt: skip
     assert {n.name for n in plan.nodes} == set(run)
-    assert ("aided_node" in run) == name.startswith("aided_")
+    assert "aided_node" in run
+    models = 2 if name == "default.yaml" else 1
+    imu_nodes = ["imu_model_node", "imu_model_node_1"][:models]
+    assert sorted(n for n in run if n.startswith("imu_model")) == imu_nodes
+    for i, node_name in enumerate(imu_nodes):  # each its own model, name and output
+        node = plan.node(node_name)
+        assert node.executable == "imu_model_node" and node.parameters["model"] == i
+        assert _param(run[node_name], "model") == str(i)
+        assert ("__node:=imu_model_node_1" in run[node_name]) == (i == 1)
+    if models == 2:
+        outs = [plan.node(n).parameters["subscribers_per_topic"][0] for n in imu_nodes]
+        assert outs == ["/variation/imu_measured=1", "/reference/imu_measured=2"]
     for node in plan.nodes:
         if node.name == "bag_recorder":
             continue
@@ -131,7 +143,8 @@ def test_counts_and_nodes_equal_strapdown_sim_run(name, rate_factor, tmp_path) -
 
 def test_car_counts_are_not_the_params_file_ones(tmp_path) -> None:
     """params.yaml's counts are default.yaml's; car.yaml (no variation/navigator: only the
-    recorder and the aiding node listen) needs others, which the launch passes over them."""
+    recorder, the aiding node, the IMU model and the aided filter listen) needs others, which
+    the launch passes over them."""
     static = yaml.safe_load((REPO / "config" / "params.yaml").read_text())
     file_counts = dict(
         item.rsplit("=", 1)
@@ -143,9 +156,10 @@ def test_car_counts_are_not_the_params_file_ones(tmp_path) -> None:
         item.rsplit("=", 1) for item in plan.node("trajectory_node").parameters[
             "subscribers_per_topic"]
     )  # fmt: skip
-    assert file_counts["/reference/odom"] == "3" and car["/reference/odom"] == "2"
-    assert file_counts["/reference/imu"] == "2" and car["/reference/imu"] == "1"
-    assert {n.name for n in plan.nodes} == {"bag_recorder", "trajectory_node", "aiding_node"}
+    assert file_counts["/reference/odom"] == "4" and car["/reference/odom"] == "3"
+    assert file_counts["/reference/imu"] == "3" and car["/reference/imu"] == "2"
+    assert {n.name for n in plan.nodes} == {"bag_recorder", "trajectory_node", "aiding_node",
+                                            "imu_model_node", "aided_node"}  # fmt: skip
 
 
 def test_default_out_is_time_stamped_and_never_existing(tmp_path) -> None:
@@ -337,7 +351,8 @@ def test_launch_file_stops_on_a_failing_node(tmp_path, monkeypatch) -> None:
     nodes = [a for a in actions if type(a).__name__ == "Node"]
     handlers = [a for a in actions if type(a).__name__ == "RegisterEventHandler"]
     assert {n.kwargs["executable"] for n in nodes} == {"bag_recorder", "trajectory_node",
-                                                       "aiding_node"}  # fmt: skip
+                                                       "imu_model_node", "aiding_node",
+                                                       "aided_node"}  # fmt: skip
     assert len(handlers) == len(nodes)
     for node, handler in zip(nodes, handlers, strict=True):
         on_exit = handler.args[0]
@@ -382,7 +397,8 @@ class Params:
 
 actions = module._nodes({context!r}, Params())
 nodes = [a for a in actions if type(a).__name__ == "Node"]
-print(json.dumps([[n.kwargs["executable"], n.kwargs["parameters"][1]] for n in nodes]))
+print(json.dumps([[n.kwargs["name"], n.kwargs["executable"], n.kwargs["parameters"][1]]
+                  for n in nodes]))
 print(sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED))
 """
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -390,7 +406,7 @@ print(sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED))
     assert proc.returncode == 0, proc.stderr
     got, loaded = proc.stdout.splitlines()
     want = launch_logic.plan_launch(context["scenario"], context["out"], duration_s=DURATION)
-    assert json.loads(got) == [[n.name, n.parameters] for n in want.nodes]
+    assert json.loads(got) == [[n.name, n.executable, n.parameters] for n in want.nodes]
     assert loaded == "[]"
 
 

@@ -13,7 +13,8 @@ from strapdown_ros.core.young import C_NED_TO_UEN, young_angles_from_dcm
 from strapdown_ros.stages.trajectory import generate_reference
 
 DEFAULT = "config/scenarios/default.yaml"
-NO_SECTIONS = ("variation=null", "navigator=null", "imu_errors=null")  # the reference alone
+# the reference alone
+NO_SECTIONS = ("variation=null", "navigator=null", "imu_errors=null", "aided=null")
 
 
 @pytest.fixture(scope="module")

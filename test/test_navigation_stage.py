@@ -204,7 +204,7 @@ def reference_input():
     """A 3 s flight's reference Imu / Odometry fields and the scenario navigating on them."""
     s = load_scenario(
         DEFAULT,
-        ["variation=null", "imu_errors=null", "navigator.imu_topic=/reference/imu",
+        ["variation=null", "imu_errors=null", "aided=null", "navigator.imu_topic=/reference/imu",
          "navigator.truth_topic=/reference/odom",
          "navigator.initial_errors.attitude_rph_deg=[0.01, 0, 0]"],
         3.0,

@@ -217,7 +217,7 @@ def test_scenario_rejects_bad_navigator_sections() -> None:
         "navigator.frobnicate=1": "navigator.frobnicate",
     }
     for override, key in cases.items():
-        extra = ["imu_errors=null"] if "imu_measured" in override else []
+        extra = ["imu_errors=null", "aided=null"] if "imu_measured" in override else []
         with pytest.raises(ScenarioError) as info:
             load_scenario(SCENARIO, [*extra, override], 1.0)
         assert info.value.key == key, (override, str(info.value))

@@ -153,3 +153,28 @@ def test_a_worker_stopped_right_after_the_fork_prints_no_traceback() -> None:
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr and "Stopped" not in proc.stderr, proc.stderr
     assert proc.stdout.split() == ["closed", str(128 + 15)]
+
+
+@pytest.mark.parametrize("setting", [None, "thread"])
+def test_thread_setting_runs_the_items_in_this_process(setting, monkeypatch) -> None:
+    """``STRAPDOWN_PRODUCER=thread`` (the mutation runs): the items run in the calling process;
+    otherwise (Linux) in a forked worker."""
+    from strapdown_ros.producer import THREAD_ENV
+
+    if setting is None:
+        monkeypatch.delenv(THREAD_ENV, raising=False)
+    else:
+        monkeypatch.setenv(THREAD_ENV, setting)
+    pids = []
+
+    def items():
+        for k in range(2):
+            pids.append(os.getpid())  # only a thread's appends reach this list
+            yield _piece(k)
+
+    producer = Producer(items())
+    try:
+        assert [p.cycles for p in producer] == [1, 2]
+    finally:
+        producer.close()
+    assert pids == ([os.getpid()] * 2 if setting else [])

@@ -30,6 +30,15 @@ AIDED = str(ROOT / "test/data/aided_default_noisy.yaml")
 DURATION = "20"
 
 
+#: default.yaml with the variation IMU's error model only and no aided filter (the aided
+#: filter's own bag: AIDED).
+VARIATION_MODEL_ONLY = (
+    "imu_errors={preset: tactical, seed: 1, input_topic: /variation/imu, "
+    "output_topic: /variation/imu_measured}",
+    "aided=null",
+)
+
+
 def _generate(scenario: str, out: Path, *overrides: str) -> Path:
     args = ["generate", scenario, "--duration", DURATION, "--out", str(out), "--quiet"]
     for o in overrides:
@@ -41,8 +50,9 @@ def _generate(scenario: str, out: Path, *overrides: str) -> Path:
 @pytest.fixture(scope="module")
 def bags(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("report_solutions")
-    default = _generate(DEFAULT, d / "default")
-    measured = _generate(DEFAULT, d / "measured", "navigator.imu_topic=/variation/imu_measured")
+    default = _generate(DEFAULT, d / "default", *VARIATION_MODEL_ONLY)
+    measured = _generate(DEFAULT, d / "measured", *VARIATION_MODEL_ONLY,
+                         "navigator.imu_topic=/variation/imu_measured")
     aided = _generate(AIDED, d / "aided")
     # the default bag without its measured IMU (and no aided filter): no such sections
     contents = read_bag(default)

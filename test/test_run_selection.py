@@ -19,7 +19,7 @@ SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 OPTIONS = ["--duration", "2", "--compression", "zstd", "--topics", "/tf", "/tf_static",
            "/navigator/odom", "--regex", "/reference/.*", "--exclude-regex", ".*_map"]  # fmt: skip
 SELECTED = {"/tf", "/tf_static", "/navigator/odom", "/reference/imu", "/reference/odom",
-            "/reference/fix"}  # fmt: skip
+            "/reference/fix", "/reference/imu_measured"}  # fmt: skip
 
 
 @pytest.mark.slow

@@ -47,7 +47,8 @@ def bag(tmp_path_factory):
     """The bag of ``strapdown-sim generate`` for the scenario the node runs (with /clock)."""
     out = tmp_path_factory.mktemp("generate") / "bag"
     # the reference streams only: what trajectory_node publishes
-    overrides = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null"]
+    overrides = ["recording.clock=true", "variation=null", "navigator=null", "imu_errors=null",
+                 "aided=null"]
     contents = nt.generated(SCENARIO, out, DURATION_S, overrides, timeout=120)
     assert {t: len(d.payloads) for t, d in contents.topics.items()} == COUNTS
     return contents

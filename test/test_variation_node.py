@@ -309,7 +309,7 @@ def test_gap_and_out_of_order_restart(bag, scenario, procs, ros_env, tmp_path):
         (
             [
                 f"scenario:={SCENARIO}",
-                "overrides:=['variation=null', 'navigator=null', 'imu_errors=null']",
+                "overrides:=['variation=null', 'navigator=null', 'imu_errors=null', 'aided=null']",
             ],
             r"invalid scenario: variation: missing",
         ),

@@ -23,13 +23,14 @@ GYRO_ERRORS = (
     "gyro_g_sensitivity_dphpg: [[1, 2, 3], [4, 5, 6], [7, 8, 9]]}",
     "navigator.imu_topic=/variation/imu_measured",
     "navigator.truth_topic=/reference/odom",
+    "aided=null",
 )
 #: default.yaml's flight on its reference IMU, the last (descent) segment turned into a level
 #: cruise turning at 0.1°/s so that the run can be an hour long.
 MOVING = (
     "variation=null",
     "aiding=null",
-    "imu_errors=null",
+    "imu_errors=null", "aided=null",
     "navigator.imu_topic=/reference/imu",
     "navigator.truth_topic=/reference/odom",
     "trajectory.segments.14.climb_rate_mps=0.0",

@@ -143,7 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         run_args = ["--max-children", "2", *run_args]
     cmd = ["nice", "-n", "19", *mutmut, "run", *run_args]
     print(f"mutation: {' '.join(cmd)} in {dest}", flush=True)
-    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+    # generate's producer as a thread: mutmut records which tests reach a function in the test
+    # process, and a forked producer would hide every stage it runs from that record
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1", STRAPDOWN_PRODUCER="thread")
     return subprocess.run(cmd, cwd=dest, env=env).returncode
 
 

@@ -25,6 +25,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from strapdown_ros.analysis import covariance_check as cc
+from strapdown_ros.config import navigator_spec
 
 UNITS = ("m", "m", "m", "m/s", "m/s", "m/s", "mrad", "mrad", "mrad")
 SCALE = (1, 1, 1, 1, 1, 1, 1e3, 1e3, 1e3)
@@ -80,9 +81,14 @@ def main(argv: list[str]) -> int:
     if "--realized" in argv:
         from strapdown_ros.campaign.results import finished_runs
 
-        assert scenario.imu_errors is not None
-        seeds = cc.campaign_seeds(out, sorted(finished_runs(out)))
-        cov0 = cc.realized_initial_covariance(scenario.imu_errors.parameters(), seeds)
+        nav = navigator_spec(scenario)
+        assert nav is not None
+        spec = scenario.imu_errors_of(nav.imu_topic)  # the navigator's model
+        assert spec is not None
+        index = scenario.imu_errors.index(spec)
+        key = "imu_errors.seed" if len(scenario.imu_errors) == 1 else f"imu_errors.{index}.seed"
+        seeds = cc.campaign_seeds(out, sorted(finished_runs(out)), key)
+        cov0 = cc.realized_initial_covariance(spec.parameters(), seeds)
         variants.append((prefix.with_name(prefix.name + "_realized"), cov0,
                          "started from the campaign's drawn constants"))  # fmt: skip
     prefix.parent.mkdir(parents=True, exist_ok=True)

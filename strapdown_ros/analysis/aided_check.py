@@ -101,6 +101,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import time
 
     from strapdown_ros.config.scenario import apply_overrides, parse_scenario
+    from strapdown_ros.stages.aided import aided_imu_errors
     from strapdown_ros.stages.aided_montecarlo import campaign_document, monte_carlo
 
     ap = argparse.ArgumentParser(prog="python -m strapdown_ros.analysis.aided_check",
@@ -125,8 +126,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         monte_carlo(doc, args.runs, args.dir, args.seed, overrides, args.workers, keep=True)
     took = time.perf_counter() - start
     runs = [read_aided_run(args.dir / f"run_{k:03d}", scenario) for k in range(args.runs)]
-    assert scenario.imu_errors is not None
-    prediction, spread = aided_prediction(runs, scenario.imu_errors.parameters())
+    prediction, spread = aided_prediction(runs, aided_imu_errors(scenario).parameters())
     k = prediction.stamps_ns.shape[0]
     ensemble = cc.Ensemble(prediction.stamps_ns, np.stack([r.errors[:k] for r in runs]))
     checks, _ = cc.compare_ensemble(prediction, ensemble, skip_s=args.skip)

@@ -150,12 +150,13 @@ def predict_scenario(
     :func:`realized_initial_covariance`).
     """
     nav = navigator_spec(scenario)
-    spec = scenario.imu_errors
-    if nav is None or spec is None:
+    if nav is None or not scenario.imu_errors:
         raise ValueError("the scenario needs a navigator and an imu_errors section")
+    spec = scenario.imu_errors_of(nav.imu_topic)
+    if spec is None:
+        outputs = ", ".join(out for _, out in scenario.measured_imu_topics())
+        raise ValueError(f"navigator.imu_topic: {nav.imu_topic} is not a measured IMU ({outputs})")
     ideal, measured = spec.topics(scenario.recording.topics)
-    if nav.imu_topic != measured:
-        raise ValueError(f"navigator.imu_topic: {nav.imu_topic} is not the measured IMU {measured}")
     if nav.initial_errors is not None and any(
         np.any(np.asarray(v) != 0) for v in nav.initial_errors.model_dump().values()
     ):

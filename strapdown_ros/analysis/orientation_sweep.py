@@ -114,12 +114,10 @@ def gyro_errors_of(scenario: Scenario) -> tuple[GyroErrors | None, str | None]:
     ``(None, None)`` when the navigator reads an ideal IMU topic.
     """
     nav = navigator_spec(scenario)
-    spec = scenario.imu_errors
+    spec = None if nav is None else scenario.imu_errors_of(nav.imu_topic)
     if nav is None or spec is None:
         return None, None
     ideal, measured = spec.topics(scenario.recording.topics)
-    if nav.imu_topic != measured:
-        return None, None
     return GyroErrors.from_parameters(spec.parameters(), scenario.period_ns * 1e-9), ideal
 
 

@@ -92,18 +92,18 @@ class Campaign:
             self.common.append(f"duration_s={self.duration_s!r}")
         base = apply_overrides(document, self.common)
         scenario = parse_scenario(base, self.scenario_path)
-        if scenario.imu_errors is None and not self.varies:
+        if not scenario.imu_errors and not self.varies:
             raise ScenarioError(
                 "imu_errors",
                 "a campaign varies the IMU error realizations: the scenario needs an imu_errors "
                 "section (or --vary keys)",
             )
-        # The navigator runs on the measured IMU (what a user's filter would get).
-        measured = scenario.recording.topics["variation_imu_measured"]
-        if scenario.imu_errors is not None:
-            measured = getattr(scenario.imu_errors, "output_topic", None) or measured
+        # The navigator runs on a measured IMU (what a user's filter would get): the one it
+        # names if it names one, else the first model's output.
+        outputs = [out for _, out in scenario.measured_imu_topics()]
         nav = base.get("navigator") or {}
-        if scenario.imu_errors is not None and nav.get("imu_topic") != measured:
+        if outputs and nav.get("imu_topic") not in outputs:
+            measured = outputs[0]
             self.common.append(f"navigator.imu_topic={measured}")
             base = apply_overrides(document, self.common)
         self.base_document = base

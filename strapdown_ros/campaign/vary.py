@@ -4,7 +4,7 @@
 lists of numbers for a vector key (drawn per element), written as YAML flow values, e.g.::
 
     --vary navigator.initial_errors.attitude_rph_deg='normal([0, 0, 0], [0.01, 0.01, 0.1])'
-    --vary imu_errors.gyro_bias_dph='uniform(-1, 1)'
+    --vary imu_errors.0.gyro_bias_dph='uniform(-1, 1)'
 
 ``KEY`` is a dotted scenario key as for ``--set``. A draw is a plain override: the run's
 scenario is validated by the scenario model like any other, so a key that does not exist or a

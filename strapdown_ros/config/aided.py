@@ -8,7 +8,7 @@ periods on the IMU grid). The filter: docs/aided.md; its theory: docs/theory/aid
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, field_validator
@@ -152,7 +152,8 @@ class TuningSpec(Model):
 class AidedSpec(Model):
     """The ``aided`` section (docs/aided.md).
 
-    ``imu_topic`` None: the ``imu_errors`` output topic (which must measure ``/reference/imu``).
+    ``imu_topic`` None: the output topic of the ``imu_errors`` model measuring
+    ``/reference/imu``.
     ``sensors`` None: every measurement of the aiding sensors the scenario enables.
     """
 
@@ -221,12 +222,15 @@ class AidedSpec(Model):
         keys = aided_output_keys(sensors)
         return {k: self.topics.get(k, f"{self.topic_prefix}/{keys[k]}") for k in keys}
 
-    def resolved_imu_topic(self, measured: tuple[str, str] | None) -> str | None:
-        """``imu_topic``, or the output of the ``imu_errors`` model (``measured``: its input and
-        output topics; None without one)."""
+    def resolved_imu_topic(
+        self, measured: Sequence[tuple[str, str]], reference: str
+    ) -> str | None:
+        """``imu_topic``, or the output of the ``imu_errors`` model whose input is ``reference``
+        (the reference IMU topic; ``measured``: each model's input and output topics). None:
+        no such model."""
         if self.imu_topic is not None:
             return self.imu_topic
-        return None if measured is None else measured[1]
+        return next((out for source, out in measured if source == reference), None)
 
 
 def aided_output_keys(sensors: Any) -> dict[str, str]:
@@ -247,14 +251,14 @@ def check_aided(
     spec: AidedSpec | None,
     *,
     topics: Mapping[str, str],
-    measured: tuple[str, str] | None,
+    measured: Sequence[tuple[str, str]],
     aiding: AidingSpec | None,
     period_ns: int,
 ) -> None:
     """Cross-field rules of ``aided`` (called by the scenario's validation).
 
-    ``topics``: ``recording.topics``; ``measured``: the ``imu_errors`` model's input and output
-    topics (None without one); ``aiding``: the aiding section; ``period_ns``: the IMU period.
+    ``topics``: ``recording.topics``; ``measured``: each ``imu_errors`` model's input and output
+    topics; ``aiding``: the aiding section; ``period_ns``: the IMU period.
     The IMU topic must be the output of an ``imu_errors`` model on the reference IMU (the
     aiding lever arms are measured from the reference IMU); the truth topic the reference
     Odometry; the sensors used enabled in ``aiding``; the output and covariance periods whole
@@ -268,16 +272,18 @@ def check_aided(
     if spec is None or not spec.enabled:
         return
     reference = topics["reference_imu"]
-    imu = spec.resolved_imu_topic(measured)
+    imu = spec.resolved_imu_topic(measured, reference)
     if imu is None:
         raise ScenarioError(
             "aided.imu_topic",
             "no measured IMU: the aided filter runs on the output of an imu_errors model whose "
-            f"input is {reference} (add an imu_errors section with input_topic: {reference})",
+            f"input is {reference} (add an imu_errors model with input_topic: {reference}, or "
+            "remove the aided section: aided=null)",
         )
-    if measured is None or imu != measured[1] or measured[0] != reference:
-        what = "" if measured is None else (
-            f" (imu_errors measures {measured[0]} into {measured[1]})")  # fmt: skip
+    source = next((src for src, out in measured if out == imu), None)
+    if source != reference:
+        what = "" if not measured else " (imu_errors measures " + ", ".join(
+            f"{src} into {out}" for src, out in measured) + ")"  # fmt: skip
         raise ScenarioError(
             "aided.imu_topic",
             f"{imu} is not a measured IMU of the reference IMU{what}; the filter runs only on "

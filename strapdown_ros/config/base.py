@@ -298,6 +298,13 @@ def _model_kind(model: type[BaseModel]) -> str | None:
     return args[0] if typing.get_origin(field.annotation) is Literal and len(args) == 1 else None
 
 
+def _list_items(t: Any) -> list[Any]:
+    """The item types of a list or tuple type ``t`` (none for another type)."""
+    if typing.get_origin(t) not in (list, tuple):
+        return []
+    return [u for a in typing.get_args(t) if a is not Ellipsis for u in _unwrap(a)]
+
+
 def _keys_at(root: type[BaseModel], loc: Sequence[str | int], document: Any) -> tuple[str, Any]:
     """Dotted key of ``loc`` (tagged-union tags removed) and the model type found there."""
     key = ""
@@ -313,6 +320,11 @@ def _keys_at(root: type[BaseModel], loc: Sequence[str | int], document: Any) -> 
             if tagged and (len(models) > 1 or part not in tagged[0].model_fields):
                 types_here, i = tagged, i + 1
                 continue
+        if isinstance(part, int) and isinstance(node, Mapping):
+            # a one-or-list section written as one mapping: its keys without an index
+            types_here = [a for t in types_here for a in _list_items(t)]
+            i += 1
+            continue
         key = join_key(key, part)
         nxt: list[Any] = []
         if isinstance(part, int):

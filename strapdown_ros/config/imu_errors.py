@@ -9,7 +9,7 @@ takes. Keys: docs/scenarios.md; the model and the preset figures: docs/theory/im
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
@@ -35,6 +35,8 @@ __all__ = [
     "SENSOR_KEYS",
     "ImuErrorsSpec",
     "check_imu_errors",
+    "imu_errors_key",
+    "one_or_list",
 ]
 
 #: Standard gravity (m/s², the conventional value of CGPM 1901), the ``g`` of the ``mg`` and
@@ -407,29 +409,60 @@ def generated_imu_topics(topics: Mapping[str, str], variation: bool) -> list[str
     return [topics[k] for k in keys]
 
 
+def one_or_list(value: Any) -> Any:
+    """The ``imu_errors`` value as a list of models: one mapping (one model), a list of them,
+    or None / an empty list (none)."""
+    if value is None:
+        return []
+    if isinstance(value, Mapping):
+        return [value]
+    if not isinstance(value, list | tuple):
+        raise ValueError(f"must be a mapping (one model) or a list of them, got {shorten(value)}")
+    return value
+
+
+def imu_errors_key(index: int, count: int) -> str:
+    """The key of model ``index`` of ``count``: ``imu_errors`` for a single model (written as
+    one mapping or a list of one), ``imu_errors[index]`` in a list of several."""
+    return "imu_errors" if count == 1 else f"imu_errors[{index}]"
+
+
 def check_imu_errors(
-    spec: ImuErrorsSpec | None, topics: Mapping[str, str], *, variation: bool
+    specs: Sequence[ImuErrorsSpec], topics: Mapping[str, str], *, variation: bool
 ) -> None:
     """Cross-field rules of ``imu_errors`` (called by the scenario's validation with the
     ``recording.topics`` and whether the scenario has a ``variation`` section).
 
-    ``imu_errors.input_topic`` must be an ideal IMU topic the scenario generates and
-    ``imu_errors.output_topic`` must not be another stream's topic.
+    Per model: ``input_topic`` must be an ideal IMU topic the scenario generates and
+    ``output_topic`` must not be another stream's topic. Across models: no two read the same
+    input or write the same output.
 
     Raises
     ------
     ScenarioError
-        Naming ``imu_errors.input_topic`` or ``imu_errors.output_topic``.
+        Naming ``imu_errors.input_topic`` / ``imu_errors.output_topic`` (``imu_errors[i]...``
+        in a list of several models).
     """
-    if spec is None:
-        return
-    input_topic, output_topic = spec.topics(topics)
     generated = generated_imu_topics(topics, variation)
-    if input_topic not in generated:
-        raise ScenarioError(
-            "imu_errors.input_topic",
-            f"{input_topic} is not an ideal IMU topic of this scenario "
-            f"(generated: {', '.join(generated)})",
-        )
-    if output_topic in topics.values() and output_topic != topics["variation_imu_measured"]:
-        raise ScenarioError("imu_errors.output_topic", f"{output_topic} is another stream's topic")
+    inputs: dict[str, int] = {}
+    outputs: dict[str, int] = {}
+    for i, spec in enumerate(specs):
+        key = imu_errors_key(i, len(specs))
+        input_topic, output_topic = spec.topics(topics)
+        if input_topic not in generated:
+            raise ScenarioError(
+                f"{key}.input_topic",
+                f"{input_topic} is not an ideal IMU topic of this scenario "
+                f"(generated: {', '.join(generated)})",
+            )
+        if output_topic in topics.values() and output_topic != topics["variation_imu_measured"]:
+            raise ScenarioError(f"{key}.output_topic", f"{output_topic} is another stream's topic")
+        for seen, topic, field in ((inputs, input_topic, "input"), (outputs, output_topic,
+                                                                     "output")):  # fmt: skip
+            if topic in seen:
+                raise ScenarioError(
+                    f"{key}.{field}_topic",
+                    f"{topic} is also the {field} of imu_errors[{seen[topic]}] (each model "
+                    f"has its own {field} topic)",
+                )
+            seen[topic] = i

@@ -8,7 +8,7 @@ them in. Keys: docs/scenarios.md; the navigator: docs/navigator.md.
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -163,7 +163,7 @@ class NavigatorSpec(Model):
 
     def _resolve(
         self, topics: Mapping[str, str], gravity_model: str,
-        measured: tuple[str, str] | None = None,
+        measured: Sequence[tuple[str, str]] = (),
     ) -> NavigatorSpec:  # fmt: skip
         imu = self.imu_topic or topics.get("variation_imu", "/variation/imu")
         key = stream_key(topics, imu, measured)
@@ -201,19 +201,20 @@ def topic_key(topics: Mapping[str, str], name: str) -> str | None:
 
 
 def stream_key(
-    topics: Mapping[str, str], imu: str, measured: tuple[str, str] | None = None
+    topics: Mapping[str, str], imu: str, measured: Sequence[tuple[str, str]] = ()
 ) -> str | None:
     """The :data:`INPUT_STREAMS` key of the IMU topic ``imu``: its ``recording.topics`` key, or,
-    for the IMU error model's output (``measured`` = its input and output topics, whatever
-    their names), ``variation_imu_measured`` when it measures the variation IMU and else the
-    key of the ideal IMU it measures. None: not an IMU stream (the error model's default
-    output name when the model writes elsewhere included)."""
-    if measured is not None and imu == measured[1]:
-        source = topic_key(topics, measured[0])
-        return "variation_imu_measured" if source == "variation_imu" else source
+    for an IMU error model's output (``measured`` = each model's input and output topics,
+    whatever their names), ``variation_imu_measured`` when it measures the variation IMU and
+    else the key of the ideal IMU it measures. None: not an IMU stream (the error models'
+    default output name when no model writes it included)."""
+    for source_topic, output in measured:
+        if imu == output:
+            source = topic_key(topics, source_topic)
+            return "variation_imu_measured" if source == "variation_imu" else source
     key = topic_key(topics, imu)
-    if measured is not None and key == "variation_imu_measured":
-        return None  # the model writes another topic: nothing produces this one
+    if measured and key == "variation_imu_measured":
+        return None  # the models write other topics: nothing produces this one
     return key
 
 
@@ -222,7 +223,7 @@ def resolve_navigator(
     topics: Mapping[str, str],
     gravity_model: str,
     sections: Collection[str] | None = None,
-    measured: tuple[str, str] | None = None,
+    measured: Sequence[tuple[str, str]] = (),
 ) -> NavigatorSpec:
     """``spec`` with its scenario-dependent defaults filled in, checked against the scenario.
 
@@ -239,10 +240,10 @@ def resolve_navigator(
         ``variation``, ``imu_errors``, ...). Given, the input must be one of the scenario's IMU
         streams (with the section that stream needs) and ``initialization: scenario`` needs
         ``initial``. None: not checked (``navigator_node`` without a scenario).
-    measured : (str, str), optional
-        The IMU error model's input and output topics (``ImuErrorsSpec.topics``), when the
-        scenario has one: its output is an IMU stream whatever its name (truth: that of its
-        input) and the default name is none when the model writes elsewhere.
+    measured : sequence of (str, str), optional
+        Each IMU error model's input and output topics (``Scenario.measured_imu_topics``): an
+        output is an IMU stream whatever its name (truth: that of its input) and the default
+        name is none when no model writes it.
 
     Raises
     ------
@@ -254,10 +255,9 @@ def resolve_navigator(
         key = stream_key(topics, imu, measured)
         if key not in INPUT_STREAMS:
             streams = [topics[k] for k in INPUT_STREAMS if k in topics]
-            if measured is not None:
+            if measured:
                 streams = [t for t in streams if stream_key(topics, t, measured)]
-                if measured[1] not in streams:
-                    streams.append(measured[1])
+                streams += [out for _, out in measured if out not in streams]
             names = ", ".join(streams)
             raise ScenarioError(
                 "navigator.imu_topic", f"{shorten(imu)} is not an IMU stream; one of: {names}"

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import Field, PrivateAttr, field_validator, model_validator
+from pydantic import BeforeValidator, Field, PrivateAttr, field_validator, model_validator
 
 from strapdown_ros.config.aided import AidedSpec, check_aided
 from strapdown_ros.config.aiding import AidingSpec, check_aiding
@@ -34,7 +34,7 @@ from strapdown_ros.config.base import (
     shorten,
     validate_section,
 )
-from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors
+from strapdown_ros.config.imu_errors import ImuErrorsSpec, check_imu_errors, one_or_list
 from strapdown_ros.config.initial import Initial
 from strapdown_ros.config.navigator import NavigatorSpec, check_navigator, resolve_navigator
 from strapdown_ros.config.tf import TFSpec, check_tf, sensor_frames
@@ -188,6 +188,15 @@ _TOPIC_FIELDS: dict[str, tuple[str, ...]] = {
 }
 
 
+def _renamed(spec: Any, fields: tuple[str, ...], renamed: Mapping[str, str]) -> Any:
+    """``spec`` with its topic ``fields`` renamed (``renamed``: old → new name); ``spec``
+    itself when none is (or it is None)."""
+    if spec is None:
+        return None
+    moved = {f: renamed[getattr(spec, f)] for f in fields if getattr(spec, f) in renamed}
+    return spec.model_copy(update=moved) if moved else spec
+
+
 class Scenario(Model):
     """A validated scenario (frozen). ``path`` is the file it was read from (if any)."""
 
@@ -203,7 +212,8 @@ class Scenario(Model):
     trajectory: TrajectorySpec  # SECTION trajectory
     variation: VariationSpec | None = None  # SECTION variation
     navigator: NavigatorSpec | None = None  # SECTION navigator
-    imu_errors: ImuErrorsSpec | None = None  # SECTION imu_errors
+    # SECTION imu_errors: one mapping or a list of them (the models; empty: none)
+    imu_errors: Annotated[tuple[ImuErrorsSpec, ...], BeforeValidator(one_or_list)] = ()
     tf: TFSpec | None = None  # SECTION tf (config/tf.py): TF, map datum, map odometry
     aiding: AidingSpec | None = None  # SECTION aiding
     timing: TimingSpec | None = None  # SECTION timing (config/timing.py): sensor timing errors
@@ -256,14 +266,13 @@ class Scenario(Model):
             old, new = self.recording.topics, changes["topics"]
             renamed = {old[k]: new[k] for k in old if k in new and new[k] != old[k]}
             for section, fields in _TOPIC_FIELDS.items():
-                spec = getattr(self, section)
-                moved = {
-                    f: renamed[getattr(spec, f)]
-                    for f in fields
-                    if spec is not None and getattr(spec, f) in renamed
-                }
-                if moved:
-                    update[section] = spec.model_copy(update=moved)
+                value = getattr(self, section)
+                specs = value if isinstance(value, tuple) else (value,)
+                moved_specs = [_renamed(spec, fields, renamed) for spec in specs]
+                if any(m is not s for m, s in zip(moved_specs, specs, strict=True)):
+                    update[section] = (
+                        tuple(moved_specs) if isinstance(value, tuple) else moved_specs[0]
+                    )
         return self.model_copy(update=update)
 
     # -- cross-field rules ---------------------------------------------------------------------
@@ -332,18 +341,24 @@ class Scenario(Model):
         check_timing(self.timing, set(self.aiding.sensors()) if self.aiding is not None else set())
         return self
 
-    def measured_imu_topics(self) -> tuple[str, str] | None:
-        """``(input, output)`` topics of the IMU error model (None without ``imu_errors``)."""
-        if self.imu_errors is None:
-            return None
-        return self.imu_errors.topics(self.recording.topics)
+    def measured_imu_topics(self) -> tuple[tuple[str, str], ...]:
+        """``(input, output)`` topics of each IMU error model, in ``imu_errors`` order (empty
+        without ``imu_errors``)."""
+        return tuple(spec.topics(self.recording.topics) for spec in self.imu_errors)
+
+    def imu_errors_of(self, output_topic: str) -> ImuErrorsSpec | None:
+        """The IMU error model writing ``output_topic`` (None: no model writes it)."""
+        for spec, (_, output) in zip(self.imu_errors, self.measured_imu_topics(), strict=True):
+            if output == output_topic:
+                return spec
+        return None
 
     def sections(self) -> frozenset[str]:
         """Names of the optional parts the scenario has (``initial``, ``variation``,
         ``navigator``, ``imu_errors``, ``tf``, ``aiding``): what the cross-section rules of
         :func:`~strapdown_ros.config.navigator.resolve_navigator` ask about."""
         names = ("initial", "variation", "navigator", "imu_errors", "tf", "aiding")
-        return frozenset(n for n in names if getattr(self, n) is not None)
+        return frozenset(n for n in names if getattr(self, n) not in (None, ()))
 
 
 def navigator_spec(scenario: Scenario) -> NavigatorSpec | None:

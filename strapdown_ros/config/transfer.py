@@ -8,7 +8,7 @@ docs/transfer_alignment.md.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import Field, field_validator
@@ -155,14 +155,14 @@ def check_transfer(
     spec: TransferAlignmentSpec | None,
     *,
     topics: Mapping[str, str],
-    measured: tuple[str, str] | None,
+    measured: Sequence[tuple[str, str]],
     variation: VariationSpec | None,
     period_ns: int,
 ) -> None:
     """Cross-field rules of ``transfer_alignment`` (called by the scenario's validation).
 
-    ``topics``: ``recording.topics``; ``measured``: the ``imu_errors`` model's input and output
-    topics (None without one); ``variation``: the variation section; ``period_ns``: the IMU
+    ``topics``: ``recording.topics``; ``measured``: each ``imu_errors`` model's input and
+    output topics; ``variation``: the variation section; ``period_ns``: the IMU
     period.
 
     Raises
@@ -189,8 +189,7 @@ def check_transfer(
         raise ScenarioError(f"{key}", "needs variation.method: 2 (velocity constraint (10))")
     slave = topics["variation_imu"]
     allowed = {slave}
-    if measured is not None and measured[0] == slave:
-        allowed.add(measured[1])
+    allowed |= {out for source, out in measured if source == slave}
     if spec.imu_topic not in allowed:
         raise ScenarioError(
             f"{key}.imu_topic", f"{spec.imu_topic} is neither the variation IMU {slave} nor "

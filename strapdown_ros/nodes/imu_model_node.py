@@ -3,8 +3,10 @@
 A thin rclpy shell around :class:`~strapdown_ros.stages.imu_errors.ImuErrorsStage`, the
 object ``strapdown-sim generate`` feeds: raw ideal Imu payloads in (default ``/variation/imu``),
 in batches, serialized measured ones out (default ``/variation/imu_measured``), byte for byte the
-bag's. Gaps, order and restarts: the stage module. Parameters, exit status (0 done, 1 failure,
-2 invalid parameter or scenario): docs/nodes.md.
+bag's. One node runs one model of ``imu_errors`` (parameter ``model``, its index); ``run``
+starts one node per model, the first named ``imu_model_node``, model i ``imu_model_node_<i>``.
+Gaps, order and restarts: the stage module. Parameters, exit status (0 done, 1 failure, 2 invalid
+parameter or scenario): docs/nodes.md.
 """
 
 from __future__ import annotations
@@ -15,7 +17,12 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.nodes._batched import BatchedInputNode
 from strapdown_ros.nodes._tf import derived_outputs
 from strapdown_ros.nodes.lifecycle import run_node
-from strapdown_ros.nodes.parameters import ParameterError, declare_scenario, declare_string
+from strapdown_ros.nodes.parameters import (
+    ParameterError,
+    declare_int,
+    declare_scenario,
+    declare_string,
+)
 from strapdown_ros.plan import resolve_plan
 from strapdown_ros.stages.imu_errors import ImuErrorsStage, imu_errors_topics
 from strapdown_ros.stages.intake import format_stamp
@@ -30,7 +37,9 @@ class ImuModelNode(BatchedInputNode):
     def __init__(self) -> None:
         super().__init__(NODE_NAME)
         scenario = declare_scenario(self)
-        default_in, default_out = imu_errors_topics(scenario)  # ScenarioError if no imu_errors
+        self.model = declare_int(self, "model", 0, "which imu_errors model (its index)", 0)
+        # ScenarioError if the scenario has no such model
+        default_in, default_out = imu_errors_topics(scenario, self.model)
         self.input_topic = declare_string(
             self, "input_topic", default_in, "ideal Imu topic (default imu_errors.input_topic)"
         )
@@ -49,13 +58,18 @@ class ImuModelNode(BatchedInputNode):
             scenario,
             self.input_topic,
             self.output_topic,
+            model=self.model,
             info=log.info,
             warn=lambda msg: log.warning(msg),
             error=lambda msg: log.error(msg),
         )
-        # Δv / Δq beside the measured IMU (recording.increments)
-        names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
-        plan = resolve_plan(scenario.with_recording(topics=names))
+        # Δv / Δq beside the measured IMU (recording.increments), on the scenario's plan; an
+        # output_topic parameter renames the measured stream (the sections reading it follow)
+        planned = scenario
+        if self.output_topic != default_out:
+            names = dict(scenario.recording.topics, variation_imu_measured=self.output_topic)
+            planned = scenario.with_recording(topics=names)
+        plan = resolve_plan(planned)
         self.last_cycle = plan.last_cycle(self.input_topic)
         self.add_output(self.output_topic, cdr.IMU, "output_topic")
         self.frames = TFStage(plan, variation_tf=False)
@@ -67,7 +81,7 @@ class ImuModelNode(BatchedInputNode):
         spec = self.stream.spec
         end = "" if self.last_cycle is None else f" up to cycle {self.last_cycle}"
         log.info(
-            f"scenario {scenario.path} ({scenario.name}): IMU errors "
+            f"scenario {scenario.path} ({scenario.name}): IMU errors model {self.model}, "
             f"{'preset ' + spec.preset if spec.preset else 'without preset'}, seed "
             f"{spec.seed}, T = {scenario.period_ns} ns; input {self.input_topic}{end}; "
             f"output {self.output_topic}"

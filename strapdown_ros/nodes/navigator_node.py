@@ -62,7 +62,7 @@ def navigator_section(scenario: Scenario | None, overrides: dict[str, Any]) -> N
     try:
         spec = validate_section(NavigatorSpec, section, "navigator")
         sections = None if scenario is None else scenario.sections()
-        measured = None if scenario is None else scenario.measured_imu_topics()
+        measured = () if scenario is None else scenario.measured_imu_topics()
         spec = resolve_navigator(spec, topics, gravity, sections, measured)
     except ScenarioError as exc:
         key = exc.key.removeprefix("navigator.")

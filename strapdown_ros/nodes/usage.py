@@ -49,8 +49,9 @@ DESCRIPTIONS: dict[str, str] = {
         "parameters below."
     ),
     "imu_model_node": (
-        "Applies the scenario's IMU error model (imu_errors) to an IMU topic and publishes the\n"
-        "measured IMU (/variation/imu_measured by default)."
+        "Applies one of the scenario's IMU error models (imu_errors; parameter model: its\n"
+        "index) to an IMU topic and publishes the measured IMU (/variation/imu_measured by\n"
+        "default). strapdown-sim run starts one per model: imu_model_node, imu_model_node_1, ..."
     ),
     "aiding_node": (
         "Publishes the scenario's aiding sensors from the reference odometry: GNSS (/gnss/fix,\n"
@@ -191,6 +192,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("scenario", "", "scenario YAML file (required)"),
         ("overrides", [""], "scenario overrides dotted.key=value"),
         ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        ("model", 0, "which imu_errors model (its index)"),
         ("input_topic", "/variation/imu", "ideal Imu topic (default imu_errors.input_topic)"),
         ("output_topic", "/variation/imu_measured", "measured Imu topic (imu_errors.output_topic)"),
         *_BATCHED_QOS,

@@ -38,7 +38,7 @@ def attribute(lags: dict[str, float], nodes: Sequence[LiveNode], source_late_s: 
             parts.append(f"bag_recorder {max(behind - source_late_s, 0.0):.1f} s behind it")
             continue
         upstream = max([lags.get(t, 0.0) for t in node.inputs] or [0.0])
-        parts.append(f"{node.executable} +{max(behind - upstream, 0.0):.1f} s")
+        parts.append(f"{node.node_name} +{max(behind - upstream, 0.0):.1f} s")
     worst = max(lags.values(), default=0.0)
     return (
         f"behind real time: up to {worst:.1f} s at the recorder ({max(lags, key=lags.get)}); "

@@ -135,8 +135,10 @@ class Children:
         self.profile = profile
         self.started: list[Child] = []
 
-    def start(self, name: str, *params: str) -> Child:
-        """Start the node (console script) ``name`` with the common parameters and ``params``."""
+    def start(self, name: str, *params: str, node_name: str | None = None) -> Child:
+        """Start the node (console script) ``name`` with the common parameters and ``params``;
+        ``node_name``: its ROS node name (``-r __node:=``) and the child's name (its log), for
+        a node started more than once (default: the executable's own)."""
         command = [executable(name)]
         if self.profile and os.environ.get(PROFILE_ENV):
             prof = Path(os.environ[PROFILE_ENV]) / f"{name}.prof"
@@ -145,7 +147,9 @@ class Children:
         args = [*command, "--ros-args"]
         for p in (*self.common, *params):
             args += ["-p", p]
-        child = Child(name, args, self.env, self.log_dir)
+        if node_name is not None and node_name != name:
+            args += ["-r", f"__node:={node_name}"]
+        child = Child(node_name or name, args, self.env, self.log_dir)
         self.started.append(child)
         return child
 

@@ -153,11 +153,12 @@ class _LiveRun:
         flow_nodes = ["bag_recorder"]
         for node in reversed(downstream):
             child = self.children.start(
-                node.executable, self._per_topic(node.published), *node_params
+                node.executable, self._per_topic(node.published), *node.params, *node_params,
+                node_name=node.node_name,
             )
-            flow_nodes.append(node.executable)
+            flow_nodes.append(node.node_name)
             child.wait_for("subscribed to", STARTUP_TIMEOUT_S, self.children.started)
-            self.say(f"{node.executable} subscribed")
+            self.say(f"{node.node_name} subscribed")
         return self._start_source(source.executable, source.published, flow_nodes)
 
     def _recorder_params(self) -> list[str]:

@@ -107,24 +107,32 @@ def _variation_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
 
 
 def _imu_model_inputs(plan: Plan) -> tuple[str, ...]:
-    assert plan.imu_errors_topics is not None
-    return (plan.imu_errors_topics[0],)
+    return tuple(source for source, _ in plan.imu_errors_topics)
 
 
 def _imu_model_outputs(plan: Plan, upstream: Mapping[str, TopicPlan]) -> Topics:
-    assert plan.imu_errors_topics is not None
-    source, measured = plan.imu_errors_topics
-    src = upstream[source]
-    key = "variation_imu_measured"  # a recording.topics key only under its recording name
-    key = key if plan.scenario.recording.topics[key] == measured else None
-    return {measured: TopicPlan(measured, MSGTYPES["variation_imu_measured"], src.count,
-                                "imu_errors", key, src.first_ns, src.last_ns)}  # fmt: skip
+    out: Topics = {}
+    for source, measured in plan.imu_errors_topics:  # one output per model, in order
+        src = upstream[source]
+        key = "variation_imu_measured"  # a recording.topics key only under its recording name
+        key = key if plan.scenario.recording.topics[key] == measured else None
+        out[measured] = TopicPlan(measured, MSGTYPES["variation_imu_measured"], src.count,
+                                  "imu_errors", key, src.first_ns, src.last_ns)  # fmt: skip
+    return out
 
 
 def _imu_model_stage(plan: Plan, built: Mapping[str, Any]) -> Any:
-    from strapdown_ros.stages.imu_errors import ImuErrorsStage
+    from strapdown_ros.stages.imu_errors import ImuErrorsStages
 
-    return ImuErrorsStage(plan.scenario)
+    return ImuErrorsStages(plan.scenario)
+
+
+def _imu_model_nodes(plan: Plan) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]]:
+    """One ``imu_model_node`` per model: (node name, its ``model`` parameter, its input)."""
+    from strapdown_ros.stages.imu_errors import imu_model_node_name
+
+    return [(imu_model_node_name(i), (f"model:={i}",), (source,))
+            for i, (source, _) in enumerate(plan.imu_errors_topics)]  # fmt: skip
 
 
 # -- navigator ----------------------------------------------------------------------------------
@@ -290,7 +298,7 @@ CHAIN: tuple[Link, ...] = (
     Link("trajectory", "trajectory_node", _always, _none, _trajectory_outputs),
     Link("variation", "variation_node", lambda s: s.variation is not None, _variation_inputs,
          _variation_outputs, _variation_stage),  # fmt: skip
-    Link("imu_errors", "imu_model_node", lambda s: s.imu_errors is not None, _imu_model_inputs,
+    Link("imu_errors", "imu_model_node", lambda s: bool(s.imu_errors), _imu_model_inputs,
          _imu_model_outputs, _imu_model_stage),  # fmt: skip
     Link("navigator", "navigator_node", lambda s: s.navigator is not None, _navigator_inputs,
          _navigator_outputs, _navigator_stage),  # fmt: skip
@@ -364,13 +372,23 @@ def links_for(plan: Plan, targets: Iterable[str], have: Iterable[str] = ()) -> l
 @dataclass(frozen=True)
 class LiveNode:
     """A node of the live pipeline: its link, executable, inputs and the topics it publishes
-    (its link's outputs and, ``derived``, the TF / map / increment topics derived from them)."""
+    (its link's outputs and, ``derived``, the TF / map / increment topics derived from them).
+    ``name``: its ROS node name (the executable's unless a link runs several nodes, as
+    ``imu_errors`` does, one per model); ``params``: the ``name:=value`` parameters saying
+    which part of the link it runs."""
 
     link: str
     executable: str
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     derived: tuple[str, ...]
+    name: str = ""
+    params: tuple[str, ...] = ()
+
+    @property
+    def node_name(self) -> str:
+        """The ROS node name."""
+        return self.name or self.executable
 
     @property
     def published(self) -> tuple[str, ...]:
@@ -397,6 +415,13 @@ def live_graph(plan: Plan) -> tuple[list[LiveNode], dict[str, int]]:
         for topic in inputs:
             subscribers[topic] = subscribers.get(topic, 0) + 1
         outputs = tuple(t for t, p in plan.topics.items() if p.link == item.name)
+        if item.name == "imu_errors":  # one node per model, each its own output
+            for (name, params, source), output in zip(_imu_model_nodes(plan), outputs,
+                                                      strict=True):  # fmt: skip
+                derived = tuple(node_derived_topics(plan, (output,), static=False))
+                nodes.append(LiveNode(item.name, item.node, source, (output,), derived, name,
+                                      params))  # fmt: skip
+            continue
         derived = tuple(node_derived_topics(plan, outputs, static=item.name == "trajectory"))
         nodes.append(LiveNode(item.name, item.node, inputs, outputs, derived))
     return nodes, subscribers

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from strapdown_ros.config.imu_errors import imu_errors_key
 from strapdown_ros.plan.model import Plan
 
 __all__ = ["bag_custom_data"]
@@ -13,7 +14,8 @@ def bag_custom_data(plan: Plan) -> dict[str, str]:
     ``generator``, ``scenario`` (name), ``rate_hz``, the gravitation model and, for the sections
     the scenario has, ``variation.method`` / ``variation.gravity``, ``navigator.algorithm`` /
     ``navigator.mode`` / ``navigator.imu_topic`` and ``imu_errors.preset`` /
-    ``imu_errors.seed``; ``strapdown-sim report`` names the variation method from it. Written
+    ``imu_errors.seed`` (``imu_errors[i].preset`` ... with several models); ``strapdown-sim
+    report`` names the variation method from it. Written
     by ``generate`` and ``bag_recorder``.
     """
     scenario = plan.scenario
@@ -31,10 +33,12 @@ def bag_custom_data(plan: Plan) -> dict[str, str]:
         data["navigator.algorithm"], data["navigator.mode"] = nav.algorithm, str(nav.mode)
         topics = scenario.recording.topics
         data["navigator.imu_topic"] = nav.imu_topic or topics["variation_imu"]
-    if scenario.imu_errors is not None:
+    models = scenario.imu_errors
+    for i, spec in enumerate(models):
         for key in ("preset", "seed"):  # the ones the file gives
-            if key in scenario.imu_errors.model_fields_set:
-                data[f"imu_errors.{key}"] = str(getattr(scenario.imu_errors, key))
+            if key in spec.model_fields_set:
+                data[f"{imu_errors_key(i, 1 if i == 0 else len(models))}.{key}"] = str(
+                    getattr(spec, key))  # fmt: skip
     if scenario.aiding is not None:  # the section as resolved (presets filled in), for the report
         data["aiding"] = scenario.aiding.model_dump_json(exclude_none=True)
     return data

@@ -69,9 +69,10 @@ class Plan:
         Length of the trajectory as described (before ``duration_s``).
     navigator : NavigatorSpec or None
         The ``navigator`` section, resolved (topics, mode, gravity model).
-    imu_errors : ImuErrorsSpec or None
-    imu_errors_topics : (str, str) or None
-        Input and output topic of the IMU error model.
+    imu_errors : tuple of ImuErrorsSpec
+        The IMU error models (empty: none).
+    imu_errors_topics : tuple of (str, str)
+        Input and output topic of each IMU error model.
     aiding : AidingSpec or None
         The ``aiding`` section when it enables a sensor.
     tf : TFSpec
@@ -91,8 +92,8 @@ class Plan:
     cycles: int
     natural_duration_s: float
     navigator: NavigatorSpec | None
-    imu_errors: ImuErrorsSpec | None
-    imu_errors_topics: tuple[str, str] | None
+    imu_errors: tuple[ImuErrorsSpec, ...]
+    imu_errors_topics: tuple[tuple[str, str], ...]
     aiding: AidingSpec | None
     tf: TFSpec
     samples: Samples | None = None

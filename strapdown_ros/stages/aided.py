@@ -36,6 +36,7 @@ from strapdown_ros.config import Scenario
 from strapdown_ros.config.aided import SENSOR_SOURCE, AidedSpec, aided_spec
 from strapdown_ros.config.aiding import AIDING_TOPICS, GnssSpec
 from strapdown_ros.config.base import required_section
+from strapdown_ros.config.imu_errors import ImuErrorsSpec
 from strapdown_ros.core.aided.engine import AidedFilter, FilterSetup, Snapshots
 from strapdown_ros.core.aided.initial import initial_covariance, initial_error, perturbed_state
 from strapdown_ros.core.aided.layout import B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL
@@ -78,6 +79,7 @@ __all__ = [
     "R_FLOOR",
     "aided_expected_counts",
     "aided_imu_topic",
+    "aided_imu_errors",
     "aided_input_topics",
     "aided_output_topics",
     "aided_sensors",
@@ -140,11 +142,17 @@ def aided_output_topics(scenario: Scenario) -> dict[str, str]:
 
 def aided_imu_topic(scenario: Scenario) -> str:
     """The measured IMU topic the filter integrates."""
-    errors = scenario.imu_errors
-    measured = None if errors is None else errors.topics(scenario.recording.topics)
-    imu = _require(scenario).resolved_imu_topic(measured)
+    reference = scenario.recording.topics["reference_imu"]
+    imu = _require(scenario).resolved_imu_topic(scenario.measured_imu_topics(), reference)
     assert imu is not None  # check_aided
     return imu
+
+
+def aided_imu_errors(scenario: Scenario) -> ImuErrorsSpec:
+    """The ``imu_errors`` model writing the filter's IMU topic (its matched Q and P0)."""
+    spec = scenario.imu_errors_of(aided_imu_topic(scenario))
+    assert spec is not None  # check_aided
+    return spec
 
 
 def aided_topic_types(scenario: Scenario) -> dict[str, str]:
@@ -311,8 +319,7 @@ class AidedStage:
 
     def _model(self) -> tuple[FilterModel, SensorModels]:
         sc, spec = self.scenario, self.spec
-        assert sc.imu_errors is not None
-        params = sc.imu_errors.parameters()
+        params = aided_imu_errors(sc).parameters()
         sensors = sc.aiding.sensors() if sc.aiding is not None else {}
         used = {SENSOR_SOURCE[s] for s in self.sensors}
         sm = SensorModels(

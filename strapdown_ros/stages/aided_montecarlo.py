@@ -91,14 +91,16 @@ def modelled_only(document: dict[str, Any]) -> dict[str, Any]:
     """
     doc = copy.deepcopy(document)
     imu = doc.get("imu_errors")
-    if isinstance(imu, dict):
+    for model in [imu] if isinstance(imu, dict) else imu or []:
+        if not isinstance(model, dict):
+            continue
         for key in ("gyro_misalignment_sigma_mrad", "accel_misalignment_sigma_mrad",
                     "gyro_g_sensitivity_dphpg", "gyro_range_dps", "accel_range_g",
                     "gyro_bias_dph", "accel_bias_mg", "gyro_scale_factor_ppm",
                     "accel_scale_factor_ppm"):  # fmt: skip
-            imu[key] = 0.0
+            model[key] = 0.0
         for key in ("gyro_misalignment_mrad", "accel_misalignment_mrad"):
-            imu[key] = [0.0] * 6
+            model[key] = [0.0] * 6
     aiding = doc.get("aiding") or {}
     zero = {
         "gnss": ("position_offset_m", "velocity_offset_mps"),
@@ -129,8 +131,11 @@ def campaign_document(path: Path, modelled: bool, overrides: Sequence[str],
 def seed_overrides(document: dict[str, Any], run: int, base_seed: int = 0) -> list[str]:
     """``--set`` overrides giving run ``run`` its own seeds (IMU errors, sensors, filter)."""
     keys = []
-    if isinstance(document.get("imu_errors"), dict):
+    imu = document.get("imu_errors")
+    if isinstance(imu, dict):
         keys.append("imu_errors.seed")
+    elif isinstance(imu, list):
+        keys += [f"imu_errors.{i}.seed" for i, m in enumerate(imu) if isinstance(m, dict)]
     for sensor, body in (document.get("aiding") or {}).items():
         if isinstance(body, dict):
             keys.append(f"aiding.{sensor}.seed")
@@ -224,7 +229,7 @@ def bag_result(path: Path, scenario: Scenario) -> RunResult:
     """
     from strapdown_ros.bag.reader import read_bag
     from strapdown_ros.messages import odometry_state
-    from strapdown_ros.stages.aided import aided_output_topics, aided_sensors
+    from strapdown_ros.stages.aided import aided_imu_errors, aided_output_topics, aided_sensors
 
     topics = aided_output_topics(scenario)
     sensors = aided_sensors(scenario)
@@ -259,11 +264,10 @@ def bag_result(path: Path, scenario: Scenario) -> RunResult:
     pos_ned = cen @ p_pos @ cne
     att_ned = cen @ p_att @ cne
     # bias estimates against the run's true biases
-    assert scenario.imu_errors is not None
     period_s = scenario.period_ns * 1e-9
     m = (stamps - scenario.start_time_ns) // scenario.period_ns
     cycles = max(int(m.max()) + 1, 2)
-    g_true, a_true = _true_bias(scenario.imu_errors.parameters(), period_s, cycles)
+    g_true, a_true = _true_bias(aided_imu_errors(scenario).parameters(), period_s, cycles)
     idx = np.clip(m - 1, 0, None)  # the cycle ending at the epoch (cycle 1 at the start)
 
     def vec(key: str) -> np.ndarray:

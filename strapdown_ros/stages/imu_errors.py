@@ -45,23 +45,39 @@ from strapdown_ros.stages.intake import (
 
 __all__ = [
     "ImuErrorsStage",
+    "ImuErrorsStages",
     "imu_errors_spec",
     "imu_errors_topics",
+    "imu_model_node_name",
     "measured_covariances",
     "measured_imu_fields",
 ]
 
 
-def imu_errors_spec(scenario: Scenario) -> ImuErrorsSpec:
-    """The scenario's ``imu_errors`` section (ScenarioError ``imu_errors`` if it has none)."""
-    if scenario.imu_errors is None:
+def imu_errors_spec(scenario: Scenario, model: int = 0) -> ImuErrorsSpec:
+    """Model ``model`` (its index in ``imu_errors``) of the scenario (ScenarioError
+    ``imu_errors`` if it has no such model)."""
+    models = scenario.imu_errors
+    if not models:
         raise ScenarioError("imu_errors", "missing: the scenario defines no IMU error model")
-    return scenario.imu_errors
+    if not 0 <= model < len(models):
+        raise ScenarioError(
+            "imu_errors", f"no model {model}: the scenario has {len(models)} (0..{len(models) - 1})"
+        )
+    return models[model]
 
 
-def imu_errors_topics(scenario: Scenario) -> tuple[str, str]:
-    """``(input, output)`` topics of the model: the section's, else ``recording.topics``'."""
-    return imu_errors_spec(scenario).topics(scenario.recording.topics)
+def imu_errors_topics(scenario: Scenario, model: int = 0) -> tuple[str, str]:
+    """``(input, output)`` topics of model ``model``: the section's, else
+    ``recording.topics``'."""
+    return imu_errors_spec(scenario, model).topics(scenario.recording.topics)
+
+
+def imu_model_node_name(model: int) -> str:
+    """The ROS node name of ``imu_model_node`` running model ``model``: ``imu_model_node``
+    for the first, ``imu_model_node_<model>`` for the others (distinct names: flow control
+    and the logs tell them apart)."""
+    return "imu_model_node" if model == 0 else f"imu_model_node_{model}"
 
 
 def measured_covariances(model: ImuErrorModel) -> tuple[np.ndarray, np.ndarray]:
@@ -115,6 +131,8 @@ class ImuErrorsStage:
         Supplies the cycle grid (``start_time_ns``, T) and the ``imu_errors`` section.
     input_topic, output_topic : str, optional
         Override the topics of :func:`imu_errors_topics` (node parameters).
+    model : int
+        Which model of ``imu_errors`` (its index; 0: the first).
     info, warn, error : callable
         Loggers (the node's); gaps and dropped messages go to ``warn``, rejected ones to
         ``error``.
@@ -122,7 +140,7 @@ class ImuErrorsStage:
     Attributes
     ----------
     spec : ImuErrorsSpec
-        The scenario's ``imu_errors`` section.
+        The model (``imu_errors[model]``).
     last_cycle : int
         Last cycle processed (0: none yet).
     published : int
@@ -137,11 +155,12 @@ class ImuErrorsStage:
         input_topic: str | None = None,
         output_topic: str | None = None,
         *,
+        model: int = 0,
         info: Log = quiet,
         warn: Log = quiet,
         error: Log = quiet,
     ) -> None:
-        self.spec = imu_errors_spec(scenario)
+        self.spec = imu_errors_spec(scenario, model)
         self.params = self.spec.parameters()
         default_in, default_out = self.spec.topics(scenario.recording.topics)
         self.input_topic = input_topic or default_in
@@ -272,3 +291,18 @@ class ImuErrorsStage:
             if fields is not None:
                 out.append(batch(self.output_topic, fields))
         return out
+
+
+class ImuErrorsStages:
+    """Every model of the scenario's ``imu_errors``, one :class:`ImuErrorsStage` each, fed
+    the same batches (``generate``'s path). Each model has its own generator (its own seed):
+    one model's draws do not change another's stream."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.stages = [
+            ImuErrorsStage(scenario, model=i) for i in range(len(scenario.imu_errors))
+        ]
+
+    def feed_batches(self, batches: list[Batch]) -> list[Batch]:
+        """The output batches of every model, in ``imu_errors`` order."""
+        return [b for stage in self.stages for b in stage.feed_batches(batches)]

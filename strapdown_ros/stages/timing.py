@@ -45,8 +45,8 @@ _AIDING = {
 def _imu_topic(plan: Plan, timing: SensorTiming) -> str:
     if timing.topic is not None:
         return timing.topic
-    if plan.imu_errors_topics is not None:
-        return plan.imu_errors_topics[1]
+    if plan.imu_errors_topics:  # the first IMU error model's output
+        return plan.imu_errors_topics[0][1]
     return plan.scenario.recording.topics["reference_imu"]
 
 

@@ -162,9 +162,9 @@ class TransferStage:
         self.lever_true = np.asarray(om.lever_arm, dtype=np.float64)
         # the slave IMU's error model (the filter's matched Q and P0 of the biases)
         params = ImuErrorParameters.perfect()
-        measured = sc.measured_imu_topics()
-        if sc.imu_errors is not None and measured is not None and spec.imu_topic == measured[1]:
-            params = sc.imu_errors.parameters()
+        slave_errors = sc.imu_errors_of(spec.imu_topic)
+        if slave_errors is not None:
+            params = slave_errors.parameters()
         model = build_model(params, self.Ts, SensorModels(), StateOptions(None, None, False))
         self.layout = TransferLayout(model, spec.lever_arm_state)
         self.rate_variance = ImuErrorModel(params, self.Ts).rate_noise_variance()[0]

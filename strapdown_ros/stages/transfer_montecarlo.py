@@ -85,12 +85,11 @@ def base_batches(scenario: Scenario) -> tuple[list[Batch], int]:
 
 def run_transfer(scenario: Scenario, base: list[Batch], last_cycle: int) -> list[Batch]:
     """One run: the scenario's IMU errors on the variation IMU, then the transfer stage."""
-    from strapdown_ros.stages.imu_errors import ImuErrorsStage
+    from strapdown_ros.stages.imu_errors import ImuErrorsStages
     from strapdown_ros.stages.transfer import TransferStage
 
     batches = list(base)
-    if scenario.imu_errors is not None:
-        batches += ImuErrorsStage(scenario).feed_batches(base)
+    batches += ImuErrorsStages(scenario).feed_batches(base)
     return TransferStage(scenario, last_cycle).feed_batches(batches)
 
 
