@@ -45,6 +45,7 @@ from strapdown_ros.core.aided.layout import (
     B_MAG,
     B_SFA,
     B_SFG,
+    B_WHEEL_QUANT,
     B_WHEEL_SF,
     N_BLOCKS,
     StateLayout,
@@ -239,6 +240,8 @@ def test_wheel_jacobian(state, mask):
         _, ve, cbe = _ecef(s)
         vc = contact_point_velocity(ve[None], cbe[None], _omega_eb(s)[None], lever)[0]
         vc[0] *= 1.0 + s["est"][LAYOUT.slice(B_WHEEL_SF)][0]
+        last, nxt = s["est"][LAYOUT.slice(B_WHEEL_QUANT)]
+        vc[0] += last - nxt  # the encoder's speed: ũ + (ρ_{k-1} − ρ_k) / P
         return vc[mask]
 
     z = h(state) + 0.01
@@ -548,3 +551,56 @@ def test_gauss_markov_estimates_decay_as_their_covariance():
     np.testing.assert_allclose(filt.est[9:], expect[9:], rtol=1e-12)
     for block in (B_BG, B_BA, B_BARO_BIAS):
         assert np.array_equal(filt.est[lay.slice(block)], x0[lay.slice(block)])
+
+
+# ---------------------------------------------------------------------------------------------
+# the wheel encoder's quantization residuals
+
+
+def test_carry_quantization_moves_the_next_residual_to_the_last():
+    """After a wheel update ρ_next becomes ρ_last with all its correlations, and a fresh
+    ρ_next starts uncorrelated: ``P' = S P Sᵀ + v e eᵀ`` with S the shift (row k ← row k+1,
+    row k+1 ← 0), written here as a matrix product."""
+    from strapdown_ros.core.aided.update import carry_quantization
+
+    rng = np.random.default_rng(3)
+    n, k, var = 14, 11, 0.0042
+    a = rng.normal(size=(n, n))
+    p = a @ a.T
+    est = rng.normal(size=n)
+    s = np.eye(n)
+    s[k] = 0.0
+    s[k, k + 1] = 1.0
+    s[k + 1] = 0.0
+    e = np.zeros(n)
+    e[k + 1] = 1.0
+    expect_p = s @ p @ s.T + var * np.outer(e, e)
+    expect_est = s @ est
+    carry_quantization(est, p, k, var)
+    np.testing.assert_array_equal(p, expect_p)
+    np.testing.assert_array_equal(est, expect_est)
+
+
+def test_quantization_states_of_an_encoder():
+    """An encoder (pulses_per_m > 0) adds the two residual states with σ0 = (q/P)/√12 each,
+    (q = 1/pulses_per_m, P the wheel period); none without quantization or with the sensor
+    error states off; a missing wheel period is refused."""
+    from strapdown_ros.core.aided.model import SensorModels, StateOptions, build_model
+    from strapdown_ros.core.aiding.odometer import OdometerErrors
+    from strapdown_ros.core.imu_errors import ImuErrorParameters, SensorErrors
+
+    imu = ImuErrorParameters(SensorErrors.zero(), SensorErrors.zero(), 0)
+    wheel = OdometerErrors(white=0.02, pulses_per_m=48.0)
+    model = build_model(imu, 0.01, SensorModels(wheel=wheel, wheel_period_s=0.1))
+    lay = model.layout
+    np.testing.assert_allclose(model.sigma0[lay.slice(B_WHEEL_QUANT)],
+                               (1 / 48.0 / 0.1) / np.sqrt(12.0), rtol=1e-15)  # fmt: skip
+    assert lay.names()[-2:] == ["wheel_quantization_last", "wheel_quantization_next"]
+    assert model.beta[lay.slice(B_WHEEL_QUANT)].tolist() == [0.0, 0.0]
+    assert model.q[lay.slice(B_WHEEL_QUANT)].tolist() == [0.0, 0.0]
+    for sensors, options in ((SensorModels(wheel=OdometerErrors(white=0.02)), StateOptions()),
+                             (SensorModels(wheel=wheel, wheel_period_s=0.1),
+                              StateOptions(sensor_errors=False))):  # fmt: skip
+        assert not build_model(imu, 0.01, sensors, options).layout.has(B_WHEEL_QUANT)
+    with pytest.raises(ValueError, match="wheel_period_s"):
+        build_model(imu, 0.01, SensorModels(wheel=wheel))

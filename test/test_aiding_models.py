@@ -261,6 +261,26 @@ def test_odometer_quantization_bound_and_statistics():
     assert full.variance(period) == 0.01**2 + (0.01 / period) ** 2 / 6
 
 
+def test_odometer_quantization_error_is_a_difference_of_residuals():
+    """Without noise the speed's error is ``(ρ_{k−1} − ρ_k) / P`` with ρ uniform over a pulse:
+    variance (q/P)²/6 (what the published covariance adds) and successive errors correlated
+    −½ (the aided filter's two residual states), 4 standard errors. The residuals are
+    independent when the distance rolled per epoch varies by pulses from epoch to epoch (here
+    a speed drawn per epoch over 1 m/s: 4.8 pulses); at a steady speed they follow each other
+    (ρ_k = ρ_{k−1} + uP mod q) and the variance is α(1 − α)(q/P)², α = frac(uP/q)."""
+    period, q = 0.1, 1 / 48.0
+    n = 100_000
+    speed = 13.0 + np.random.default_rng(9).uniform(0.0, 1.0, n)
+    e = OdometerErrors(pulses_per_m=48.0)
+    err = OdometerErrorModel(e, period, seed=0).apply(speed) - speed
+    var = (q / period) ** 2 / 6
+    assert e.quantization_variance(period) == var
+    assert abs(err.var() / var - 1) < 4 * math.sqrt(2 / n)
+    lag1 = np.mean(err[1:] * err[:-1]) / err.var()
+    assert abs(lag1 + 0.5) < 4 / math.sqrt(n), lag1
+    assert abs(np.mean(err[2:] * err[:-2]) / err.var()) < 4 / math.sqrt(n)  # none beyond
+
+
 def test_odometer_counts_nothing_at_rest():
     """An encoder counts the wheel's rotation: at rest (after driving, residual carried)
     exactly zero speed whatever the scale factor and noise; rolling slower than σ_w the noise

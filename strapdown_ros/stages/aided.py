@@ -39,7 +39,7 @@ from strapdown_ros.config.base import required_section
 from strapdown_ros.config.imu_errors import ImuErrorsSpec
 from strapdown_ros.core.aided.engine import AidedFilter, FilterSetup, Snapshots
 from strapdown_ros.core.aided.initial import initial_covariance, initial_error, perturbed_state
-from strapdown_ros.core.aided.layout import B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL
+from strapdown_ros.core.aided.layout import B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL, B_WHEEL_QUANT
 from strapdown_ros.core.aided.measurement_models import KINDS
 from strapdown_ros.core.aided.model import FilterModel, SensorModels, StateOptions, build_model
 from strapdown_ros.core.aided.outputs import nees, reported
@@ -327,6 +327,8 @@ class AidedStage:
             baro=sensors["barometer"].errors() if "barometer" in used else None,  # type: ignore[attr-defined]
             mag=sensors["magnetometer"].errors() if "magnetometer" in used else None,  # type: ignore[attr-defined]
             wheel=sensors["wheel_odometer"].errors() if "wheel_odometer" in used else None,  # type: ignore[attr-defined]
+            wheel_period_s=(sensors["wheel_odometer"].period_ns * 1e-9
+                            if "wheel_odometer" in used else 0.0),
         )  # fmt: skip
         options = StateOptions(spec.states.gauss_markov, spec.states.scale_factors,
                                spec.states.sensor_errors)  # fmt: skip
@@ -584,6 +586,8 @@ class AidedStage:
             cov = np.asarray(f.covariance[idx]).reshape(-1, 6, 6)[:, :3, :3]
             mask = self._setup_mask()
             r = (cov * _FLU[:, None] * _FLU[None, :])[:, mask][:, :, mask]
+            if lay.has(B_WHEEL_QUANT):  # the speed's quantization is in the states
+                r[:, 0, 0] -= sm.wheel.quantization_variance(sm.wheel_period_s)  # type: ignore[union-attr]
         return z, self._tuned(sensor, r)
 
     def _setup_mask(self) -> np.ndarray:

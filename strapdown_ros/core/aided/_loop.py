@@ -40,19 +40,20 @@ from strapdown_ros.core.aided.dynamics import (
     sparse_dynamics,
     van_loan_series,
 )
-from strapdown_ros.core.aided.layout import B_BA, B_BG, B_GMA, B_GMG, B_SFA, B_SFG
+from strapdown_ros.core.aided.layout import B_BA, B_BG, B_GMA, B_GMG, B_SFA, B_SFG, B_WHEEL_QUANT
 from strapdown_ros.core.aided.measurement_models import (
     K_BARO,
     K_GNSS_POSITION,
     K_GNSS_VELOCITY,
     K_MAG,
+    K_WHEEL,
     baro_model,
     gnss_position_model,
     gnss_velocity_model,
     mag_model,
     wheel_model,
 )
-from strapdown_ros.core.aided.update import joseph_update, reset_attitude
+from strapdown_ros.core.aided.update import carry_quantization, joseph_update, reset_attitude
 from strapdown_ros.core.navigation._kernels import exact_kernel
 
 __all__ = ["advance", "apply_epoch", "inject", "is_grid", "make_posterior", "record_output"]
@@ -118,10 +119,14 @@ def apply_epoch(m, ist, nav, est, p, off, pns, h_m, h_kind, h_z, h_r, h_dim, h_s
             nu, h = wheel_model(r, v, c, est, off, levers[4], da, period, z[0:3], wheel_mask)
         d = nu.shape[0]
         rm = h_r[row, :d, :d].copy()
+        kq = off[B_WHEEL_QUANT] if kind == K_WHEEL else -1
+        fresh = p[kq + 1, kq + 1] if kq >= 0 else 0.0
         dx, nis, accepted = joseph_update(p, nu, h, rm, gate[d])
         if accepted:
             inject(nav, est, dx, 9)
             reset_attitude(p, dx[6:9])
+        if kq >= 0:  # the count moved on whether the update was accepted or not
+            carry_quantization(est, p, kq, fresh)
         if h_status[row] == 0:
             for i in range(3):
                 h_out[row, i] = nu[i] if i < d else 0.0

@@ -11,7 +11,8 @@ Error = estimate minus truth, everywhere (docs/theory/aided_ins.md §2):
 * then the aiding-sensor error states (decoupled scalar processes, optional): barometer bias
   (random constant) and drift (Gauss–Markov), GNSS position and velocity Gauss–Markov errors
   (NED), magnetometer hard iron (random constant, body FRD), wheel scale factor (random
-  constant).
+  constant), the wheel encoder's quantization residual (two states, as a speed: the residual
+  of the last wheel epoch and the one of the next, see :mod:`.measurement_models`).
 
 A block absent from a layout has offset -1. The compiled kernels take :attr:`StateLayout.offsets`
 (an int64 array indexed by the ``B_*`` block codes) and read every index from it.
@@ -38,6 +39,7 @@ __all__ = [
     "B_MAG",
     "B_SFA",
     "B_SFG",
+    "B_WHEEL_QUANT",
     "B_WHEEL_SF",
     "IMU_BLOCKS",
     "N_BLOCKS",
@@ -51,19 +53,23 @@ N_INS = 9
 
 B_BG, B_BA, B_GMG, B_GMA, B_SFG, B_SFA = 0, 1, 2, 3, 4, 5
 B_BARO_BIAS, B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL, B_MAG, B_WHEEL_SF = 6, 7, 8, 9, 10, 11
-N_BLOCKS = 12
+B_WHEEL_QUANT = 12
+N_BLOCKS = 13
 #: Size of each block, by block code.
-BLOCK_SIZES = (3, 3, 3, 3, 3, 3, 1, 1, 3, 3, 3, 1)
+BLOCK_SIZES = (3, 3, 3, 3, 3, 3, 1, 1, 3, 3, 3, 1, 2)
 #: Name of each block (docs, reports), by block code.
 BLOCK_NAMES = (
     "gyro_bias", "accel_bias", "gyro_gauss_markov", "accel_gauss_markov", "gyro_scale_factor",
     "accel_scale_factor", "baro_bias", "baro_drift", "gnss_position_gm", "gnss_velocity_gm",
-    "mag_hard_iron", "wheel_scale_factor",
+    "mag_hard_iron", "wheel_scale_factor", "wheel_quantization",
 )  # fmt: skip
+#: Suffixes of the states of a block of two (the wheel quantization residuals).
+_PAIR = ("last", "next")
 #: IMU error blocks (they follow the navigation states, in this order).
 IMU_BLOCKS = (B_BG, B_BA, B_GMG, B_GMA, B_SFG, B_SFA)
 #: Aiding-sensor error blocks (after the IMU blocks, in this order).
-SENSOR_BLOCKS = (B_BARO_BIAS, B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL, B_MAG, B_WHEEL_SF)
+SENSOR_BLOCKS = (B_BARO_BIAS, B_BARO_DRIFT, B_GNSS_POS, B_GNSS_VEL, B_MAG, B_WHEEL_SF,
+                 B_WHEEL_QUANT)
 
 
 @dataclass(frozen=True)
@@ -122,5 +128,6 @@ class StateLayout:
         by_offset = sorted((int(o), b) for b, o in enumerate(self.offsets) if o >= 0)
         for _, b in by_offset:
             size = BLOCK_SIZES[b]
-            out += [BLOCK_NAMES[b]] if size == 1 else [f"{BLOCK_NAMES[b]}_{a}" for a in "xyz"]
+            axes = {1: ("",), 2: _PAIR, 3: tuple("xyz")}[size]
+            out += [f"{BLOCK_NAMES[b]}_{a}" if a else BLOCK_NAMES[b] for a in axes]
         return out

@@ -14,7 +14,12 @@ increment ``Δα̃`` of the cycle ending at the epoch — and returns the innova
 * barometer: ``h = p_ICAO(alt(C_E0^E (R + C l))) + b̂ + d̂``;
 * magnetometer (3-axis, body FRD): ``h = Cᵀ C_E^E0 C_N^E B^N(r) + ĥ_hi`` (IGRF);
 * wheel odometer: ``v_c = Cᵀ (V - ω_ie × R) + ω̂_eb × l``, ``h = ((1 + ŝ_w) v_c,x, v_c,y,
-  v_c,z)`` (speed; the last two rows are the non-holonomic constraint, selected by ``mask``).
+  v_c,z)`` (speed; the last two rows are the non-holonomic constraint, selected by ``mask``);
+  with the quantization states the speed row adds ``ρ̂_last − ρ̂_next``: an encoder's speed is
+  ``q (n_k − n_{k−1}) / P = ũ + (ρ_{k−1} − ρ_k) / P``, ρ_k the distance rolled but not counted
+  at epoch k (uniform over one pulse q), here as speeds ρ/P. The filter carries ρ_{k−1} from
+  the last wheel epoch, adds ρ_k as a fresh state of variance (q/P)²/12 and, after the update,
+  makes it the last one (:func:`strapdown_ros.core.aided.update.carry_quantization`).
 
 Attitude convention ``Ĉ = exp([φ×]) C``: ``δ(Ĉ a) = -[(Ĉ a)×] φ``, ``δ(Ĉᵀ b) = Ĉᵀ [b×] φ``.
 The field gradient of the magnetometer (|∂B/∂r| ≈ 3|B|/r ≈ 2e-11 T/m) is neglected.
@@ -43,6 +48,7 @@ from strapdown_ros.core.aided.layout import (
     B_GNSS_VEL,
     B_MAG,
     B_SFG,
+    B_WHEEL_QUANT,
     B_WHEEL_SF,
 )
 from strapdown_ros.core.earth import A_WGS84, E2_WGS84, OMEGA_IE
@@ -321,6 +327,11 @@ def wheel_model(r, v, c, est, off, lever, da_raw, period, z_meas, mask):
         for j in range(n):
             hf[0, j] *= scale
         hf[0, ks] = vc[0]
+    kq = off[B_WHEEL_QUANT]
+    if kq >= 0:  # the count's residuals as speeds: z = ũ + ρ_last − ρ_next
+        pred[0] += est[kq] - est[kq + 1]
+        hf[0, kq] = 1.0
+        hf[0, kq + 1] = -1.0
     m = 0
     for i in range(3):
         if mask[i]:

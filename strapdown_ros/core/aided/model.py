@@ -17,7 +17,8 @@ docs/theory/aided_ins.md §3 lists the correspondences:
 * scale factor: random constant, ``σ0 = scale_factor_sigma``;
 * sensors: barometer turn-on bias (constant) and drift (Gauss–Markov), GNSS Gauss–Markov
   position/velocity errors per NED axis, magnetometer hard iron (constant), wheel scale factor
-  (constant).
+  (constant), the wheel encoder's quantization residuals (as speeds, σ0 = (q/P)/√12 each, no
+  dynamics: they change at the wheel epochs only, :func:`~.update.carry_quantization`).
 
 Fixed (deterministic) error terms, misalignments, g-sensitivity and saturation are not modelled
 (the cost of leaving them out is measured in docs/aided.md).
@@ -42,6 +43,7 @@ from strapdown_ros.core.aided.layout import (
     B_MAG,
     B_SFA,
     B_SFG,
+    B_WHEEL_QUANT,
     B_WHEEL_SF,
     N_INS,
     StateLayout,
@@ -71,12 +73,17 @@ class StateOptions:
 
 @dataclass(frozen=True)
 class SensorModels:
-    """The error models of the aiding sensors the filter uses (None: not used)."""
+    """The error models of the aiding sensors the filter uses (None: not used).
+
+    ``wheel_period_s``: the wheel odometer's epoch period P (s), needed with an encoder
+    quantization (``wheel.pulses_per_m > 0``).
+    """
 
     gnss: GnssErrors | None = None
     baro: BaroErrors | None = None
     mag: MagnetometerErrors | None = None
     wheel: OdometerErrors | None = None
+    wheel_period_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -158,6 +165,11 @@ def build_model(
         blocks.append(B_MAG)
     if sensors.wheel is not None and _on(se, sensors.wheel.scale_factor_sigma > 0):
         blocks.append(B_WHEEL_SF)
+    if sensors.wheel is not None and sensors.wheel.pulses_per_m > 0 and _on(se, True):
+        if not (sensors.wheel_period_s > 0 and math.isfinite(sensors.wheel_period_s)):
+            raise ValueError(f"wheel_period_s must be finite and > 0 with an encoder "
+                             f"quantization, got {sensors.wheel_period_s}")  # fmt: skip
+        blocks.append(B_WHEEL_QUANT)
     layout = StateLayout(tuple(blocks))
     n = layout.n
     sigma0, beta, q = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -200,6 +212,9 @@ def build_model(
         _set(sigma0, layout, B_MAG, np.asarray(sensors.mag.hard_iron_sigma, float))  # type: ignore[union-attr]
     if layout.has(B_WHEEL_SF):
         _set(sigma0, layout, B_WHEEL_SF, sensors.wheel.scale_factor_sigma)  # type: ignore[union-attr]
+    if layout.has(B_WHEEL_QUANT):  # each residual: (q/P)²/12, half the speed's (q/P)²/6
+        var = sensors.wheel.quantization_variance(sensors.wheel_period_s) / 2.0  # type: ignore[union-attr]
+        _set(sigma0, layout, B_WHEEL_QUANT, math.sqrt(var))
 
     # White noise of the navigation states: σ² T of the mean rate of a cycle.
     var_g, var_a = ImuErrorModel(imu, period_s).rate_noise_variance()

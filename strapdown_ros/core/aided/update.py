@@ -24,7 +24,7 @@ import numpy as np
 
 from strapdown_ros.core.aided._jit import jit
 
-__all__ = ["cholesky_solve", "joseph_update", "reset_attitude"]
+__all__ = ["carry_quantization", "cholesky_solve", "joseph_update", "reset_attitude"]
 
 
 @jit
@@ -184,3 +184,26 @@ def reset_attitude(p, dphi):
             s = 0.5 * (p[i, j] + p[j, i])
             p[i, j] = s
             p[j, i] = s
+
+
+@jit
+def carry_quantization(est, p, k, variance):
+    """After a wheel update: the next residual becomes the last one, a fresh next one is drawn.
+
+    ``k``: index of ρ_last (ρ_next at ``k + 1``). The row and column of ρ_next (its correlations
+    with every state from the update) move to ρ_last; ρ_next restarts uncorrelated with
+    estimate 0 and ``variance`` ((q/P)²/12: the residual of the next count, independent of
+    the last one when the distance per epoch varies by a pulse or more; at a steady speed the
+    residuals follow each other and this is an approximation).
+    """
+    n = p.shape[0]
+    for j in range(n):
+        p[k, j] = p[k + 1, j]
+    for j in range(n):
+        p[j, k] = p[j, k + 1]
+    for j in range(n):
+        p[k + 1, j] = 0.0
+        p[j, k + 1] = 0.0
+    p[k + 1, k + 1] = variance
+    est[k] = est[k + 1]
+    est[k + 1] = 0.0

@@ -69,8 +69,16 @@ class OdometerErrors:
         (The quantization error of a speed is the difference of two residuals uniform over
         one pulse, divided by the epoch period P.)
         """
+        return self.white**2 + self.quantization_variance(period_s)
+
+    def quantization_variance(self, period_s: float) -> float:
+        """Variance ((m/s)²) of the quantization error of one speed: ``(q/P)²/6``.
+
+        The error is ``(ρ_{k-1} − ρ_k) / P``, ρ the count's residual distance, uniform over one
+        pulse q (variance q²/12 each, successive errors correlated −½).
+        """
         q = 1.0 / self.pulses_per_m if self.pulses_per_m > 0 else 0.0
-        return self.white**2 + (q / period_s) ** 2 / 6.0
+        return (q / period_s) ** 2 / 6.0
 
 
 class OdometerErrorModel:
