@@ -79,13 +79,40 @@ def generated(scenario: Path, out: Path, duration_s: float, overrides=(), timeou
     return read_bag(out, raw=True)
 
 
+#: A wall-clock run whose own source published this late (ms) ran on a starved machine: in
+#: such a CI run every node's CPU time doubled for the same work (the trajectory node's 7.7 s
+#: became 15.7 s) and the source fell 1 050 ms behind its clock, against 39 ms on this machine
+#: otherwise. ``run_live(starved_retry=True)`` runs such a case once more, never a loss whose
+#: source kept its clock.
+STARVED_SOURCE_MS = 250.0
+
+
+def source_lateness_ms(text: str) -> float | None:
+    """The trajectory node's max pacing lateness (ms) in a ``run`` summary, if printed."""
+    m = re.search(r"max lateness ([0-9.]+) ms", text)
+    return float(m.group(1)) if m else None
+
+
 def run_live(
-    scenario: Path, out: Path, env: dict[str, str], *args: str, timeout: float = 300
+    scenario: Path, out: Path, env: dict[str, str], *args: str, timeout: float = 300,
+    starved_retry: bool = False,
 ) -> subprocess.CompletedProcess:
     """``strapdown-sim run SCENARIO --out OUT ARGS`` in the session's ROS domain; it must
-    succeed with zero loss."""
-    proc = sim("run", scenario, "--out", out, *args, "--domain-id", env["ROS_DOMAIN_ID"],
-               env=env, timeout=timeout)  # fmt: skip
+    succeed with zero loss. ``starved_retry``: a failed run whose source itself was more than
+    :data:`STARVED_SOURCE_MS` late is run once more (and must then succeed)."""
+
+    def once() -> subprocess.CompletedProcess:
+        return sim("run", scenario, "--out", out, *args, "--domain-id", env["ROS_DOMAIN_ID"],
+                   env=env, timeout=timeout)  # fmt: skip
+
+    proc = once()
+    late = source_lateness_ms(proc.stdout + proc.stderr)
+    if starved_retry and proc.returncode != 0 and late is not None and late > STARVED_SOURCE_MS:
+        print(f"starved machine: the source was {late:.0f} ms late; run once more\n"
+              + proc.stdout)  # fmt: skip
+        shutil.rmtree(out, ignore_errors=True)
+        shutil.rmtree(out.with_name(out.name + ".logs"), ignore_errors=True)
+        proc = once()
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "zero loss" in proc.stdout, proc.stdout
     return proc

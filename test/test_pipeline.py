@@ -49,7 +49,8 @@ def test_run_equals_generate_with_zero_loss(tmp_path, ros_env, rate_hz, duration
     """The live pipeline records what generate writes, in real time. At 1 kHz for 20 s the
     five processes must keep up on 2 cores: nodes that take one message at a time on the
     SingleThreadedExecutor fall behind and lose thousands of cycles of every variation topic
-    here (docs/benchmarks.md)."""
+    here (docs/benchmarks.md). On a machine starved by another load (the source itself more
+    than node_testing.STARVED_SOURCE_MS late) the 1 kHz run is made once more."""
     scenario = _scenario_copy(tmp_path)
     gen, live = tmp_path / "generate", tmp_path / "run"
     common = ["--duration", str(duration_s), "--set", f"rate_hz={rate_hz}"]
@@ -58,7 +59,7 @@ def test_run_equals_generate_with_zero_loss(tmp_path, ros_env, rate_hz, duration
         common += ["--set", "imu_errors={preset: tactical, seed: 1, input_topic: /variation/imu, "
                    "output_topic: /variation/imu_measured}", "--set", "aided=null"]
     generate(scenario, gen, *common, timeout=120)
-    run_live(scenario, live, dict(ros_env), *common, timeout=240)
+    run_live(scenario, live, dict(ros_env), *common, timeout=240, starved_retry=rate_hz == 1000)
     assert any(t.startswith("/navigator/") for t in read_bag(gen, raw=True).topics)
     assert_recorded_as_generated(live, gen)
     time.sleep(0.5)
