@@ -38,6 +38,7 @@ from strapdown_ros.core.imu_errors import ImuErrorModel, ImuErrorParameters, Sen
 
 __all__ = [
     "RunResult",
+    "average_series",
     "bag_result",
     "consistency",
     "modelled_only",
@@ -381,6 +382,28 @@ def consistency(results: list[RunResult], convergence_s: float = 0.0) -> Consist
     return Consistency(len(results), convergence_s, out_nees, out_nis, out_bias)
 
 
+def average_series(results: list[RunResult]) -> dict[str, dict[str, Any]]:
+    """The run averages per epoch, ``{"NEES": {position, velocity, attitude}, "NIS": {sensor:
+    ...}}``, for :func:`strapdown_ros.report.consistency_plot.plot_consistency`."""
+    from strapdown_ros.report.consistency_plot import AverageSeries
+
+    t0 = results[0].stamps[0]
+    nees = _stack([r.nees for r in results])
+    t = (results[0].stamps[: nees.shape[1]] - t0) * 1e-9
+    out: dict[str, dict[str, Any]] = {"NEES": {
+        n: AverageSeries(t, nees[:, :, i].mean(axis=0), 3, len(results))
+        for i, n in enumerate(("position", "velocity", "attitude"))}}  # fmt: skip
+    nis: dict[str, Any] = {}
+    for s in results[0].nis:
+        k = min(len(r.nis[s][1]) for r in results)
+        v = np.stack([r.nis[s][1][:k] for r in results])
+        ts = (results[0].nis[s][0][:k] - t0) * 1e-9
+        nis[s] = AverageSeries(ts, v.mean(axis=0), int(results[0].nis[s][2][0]), len(results))
+    if nis:
+        out["NIS"] = nis
+    return out
+
+
 @dataclass(frozen=True)
 class OutageDrift:
     """RMS over the outages of each outage's largest drift, and the filter's σ at that epoch
@@ -444,7 +467,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="base seed of the runs")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--dir", type=Path, default=None, help="where the run bags go (temporary)")
+    ap.add_argument("--plot", type=Path, default=None, metavar="PNG",
+                    help="draw the run-average NEES and NIS and their 95 %% bounds")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.dir is not None and not args.dir.is_dir():
+        ap.error(f"--dir {args.dir}: not a directory")
     doc, overrides = campaign_document(args.scenario, args.modelled_only, args.overrides,
                                        args.duration)  # fmt: skip
     start = time.perf_counter()
@@ -465,6 +492,13 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{math.degrees(d.heading):.4f} deg ({math.degrees(d.sigma_heading):.4f})")
         return 0
     print("\n".join(consistency(results, args.convergence).lines()))
+    if args.plot is not None:
+        from strapdown_ros.report.consistency_plot import plot_consistency
+
+        panels = average_series(results)
+        terms = "modelled terms only" if args.modelled_only else "full presets"
+        title = f"{args.scenario.name}: {args.runs} runs, {terms}"
+        print(f"plot: {plot_consistency(panels, args.plot, title, args.convergence)}")
     return 0
 
 
