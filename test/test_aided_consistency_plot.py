@@ -69,3 +69,12 @@ def test_an_outage_is_not_drawn_across() -> None:
     tt, vv = _broken_at_gaps(t, np.arange(5.0))
     np.testing.assert_array_equal(np.isnan(tt), [False, False, False, True, False, False])
     np.testing.assert_array_equal(vv[~np.isnan(vv)], np.arange(5.0))
+
+
+def test_a_missing_bag_directory_is_a_usage_error(tmp_path, capsys) -> None:
+    from strapdown_ros.stages.aided_montecarlo import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["test/data/aided_car_noisy.yaml", "--runs", "1", "--dir", str(tmp_path / "no")])
+    assert e.value.code == 2
+    assert "not a directory" in capsys.readouterr().err
