@@ -131,11 +131,19 @@ def alignment_time(t: np.ndarray, error: np.ndarray, threshold: float) -> float:
 
 
 def _seeded(doc: dict[str, Any], run: int, base_seed: int) -> list[str]:
+    """Run ``run``'s seeds: the master's, the filter's and every IMU error model's (one
+    mapping: ``SeedSequence(base, (run,))``'s first word; a list: one word per model from
+    ``SeedSequence(base, (run, 1))``)."""
     seq = np.random.SeedSequence(base_seed, spawn_key=(run,))
     s = seq.generate_state(3, dtype=np.uint32)
     out = [f"transfer_alignment.master.seed={int(s[1])}", f"transfer_alignment.seed={int(s[2])}"]
-    if isinstance(doc.get("imu_errors"), dict):
+    imu = doc.get("imu_errors")
+    if isinstance(imu, dict):
         out.append(f"imu_errors.seed={int(s[0])}")
+    elif isinstance(imu, list) and imu:
+        w = np.random.SeedSequence(base_seed, spawn_key=(run, 1)).generate_state(len(imu))
+        out += [f"imu_errors.{i}.seed={int(w[i])}"
+                for i, m in enumerate(imu) if isinstance(m, dict)]  # fmt: skip
     return out
 
 
