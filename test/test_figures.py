@@ -129,8 +129,9 @@ def _makefile_targets() -> set[str]:
 
 
 def _cli_commands() -> set[str]:
-    cli = (REPO / "strapdown_ros" / "cli.py").read_text()
-    return set(re.findall(r"add_parser\(\s*\"([a-z]+)\"", cli))
+    """The subcommands of ``strapdown-sim`` (cli.py's and the ones other modules add: score)."""
+    text = "".join((REPO / "strapdown_ros" / f).read_text() for f in ("cli.py", "score/cli.py"))
+    return set(re.findall(r"add_parser\(\s*\"([a-z]+)\"", text))
 
 
 def command_problems(command: str) -> list[str]:
