@@ -129,9 +129,10 @@ def _makefile_targets() -> set[str]:
 
 
 def _cli_commands() -> set[str]:
-    """The subcommands of ``strapdown-sim`` (cli.py's and the ones other modules add: score)."""
-    text = "".join((REPO / "strapdown_ros" / f).read_text() for f in ("cli.py", "score/cli.py"))
-    return set(re.findall(r"add_parser\(\s*\"([a-z]+)\"", text))
+    """The ``strapdown-sim`` subcommands: cli.py's parsers and those a module adds to it
+    (``score``: strapdown_ros/score/cli.py)."""
+    texts = [(REPO / "strapdown_ros" / f).read_text() for f in ("cli.py", "score/cli.py")]
+    return {name for text in texts for name in re.findall(r"add_parser\(\s*\"([a-z]+)\"", text)}
 
 
 def command_problems(command: str) -> list[str]:

@@ -14,8 +14,10 @@ from strapdown_ros.config import ScenarioError, load_scenario
 from strapdown_ros.config.scenario import navigator_spec
 
 CAR = Path(__file__).resolve().parents[1] / "config" / "suite" / "car_city.yaml"
-ON_REFERENCE = ["imu_errors.input_topic=/reference/imu",
-                "imu_errors.output_topic=/reference/imu_measured"]  # fmt: skip
+#: One IMU error model, of the reference IMU (the suite file lists two: the variation IMU's and
+#: the reference IMU's, the aided filter's input).
+ON_REFERENCE = ["imu_errors=[{preset: industrial, seed: 21, input_topic: /reference/imu, "
+                "output_topic: /reference/imu_measured}]"]  # fmt: skip
 
 
 def test_navigator_on_the_measured_reference_imu_takes_the_reference_truth(tmp_path) -> None:
