@@ -5,7 +5,8 @@
   :func:`compare_ensemble`'s series (synthetic runs, their errors drawn with the σ they carry).
 * (slow) The command line end to end on 2 short runs of the flight (bags written, read back):
   every σ finite and positive, the attitude σ about down (θ1, a variance: no sign flip) the one
-  :func:`bag_result` gives, the horizontal σ its ``sigma_h``; ``--plot`` writes the figure.
+  :func:`bag_result` gives, the horizontal σ its ``sigma_h``; ``--plot`` writes the figure;
+  ``--also`` pools the runs of more directories.
 """
 
 from __future__ import annotations
@@ -83,3 +84,7 @@ def test_command_line_on_two_short_runs(tmp_path, capsys):
     np.testing.assert_allclose(np.hypot(run.sigma[:, 0], run.sigma[:, 1]), ref.sigma_h,
                                rtol=1e-12)  # fmt: skip
     np.testing.assert_allclose(run.errors[:, 6], -ref.error_attitude[:, 2], rtol=0, atol=0)
+    assert main([str(scenario_path), "--runs", "2", "--duration", "20", "--modelled-only",
+                 "--skip", "5", "--dir", str(tmp_path / "runs"), "--also",
+                 str(tmp_path / "runs")]) == 0  # read only, pooled: 4 runs
+    assert "N = 4 runs" in capsys.readouterr().out

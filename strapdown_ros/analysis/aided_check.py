@@ -162,6 +162,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="also draw σ_ens against σ_pred with the χ²(N) band into PNG")  # fmt: skip
     ap.add_argument("--dir", type=Path, required=True,
                     help="the runs' bags (kept; runs already there are read, not rerun)")
+    ap.add_argument("--also", type=Path, action="append", default=[], metavar="DIR",
+                    help="more runs' bags (--runs of them, read only: another --seed's runs of "
+                         "the same scenario) pooled with --dir's")  # fmt: skip
     args = ap.parse_args(argv)
     doc, overrides = campaign_document(args.scenario, args.modelled_only, args.overrides,
                                        args.duration)  # fmt: skip
@@ -170,22 +173,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not all((args.dir / f"run_{k:03d}").is_dir() for k in range(args.runs)):
         monte_carlo(doc, args.runs, args.dir, args.seed, overrides, args.workers, keep=True)
     took = time.perf_counter() - start
-    runs = [read_aided_run(args.dir / f"run_{k:03d}", scenario) for k in range(args.runs)]
+    runs = [read_aided_run(d / f"run_{k:03d}", scenario)
+            for d in [args.dir, *args.also] for k in range(args.runs)]  # fmt: skip
+    n = len(runs)
     prediction, spread = aided_prediction(runs, aided_imu_errors(scenario).parameters())
     k = prediction.stamps_ns.shape[0]
     ensemble = cc.Ensemble(prediction.stamps_ns, np.stack([r.errors[:k] for r in runs]))
     checks, series = cc.compare_ensemble(prediction, ensemble, skip_s=args.skip)
-    what = (f"{args.scenario.name}: {args.runs} runs of {scenario.duration_s:g} s"
+    what = (f"{args.scenario.name}: {n} runs of {scenario.duration_s:g} s"
             f"{' (modelled terms only)' if args.modelled_only else ''}")  # fmt: skip
     print(f"{what}, runs {took:.0f} s; epochs from {args.skip:g} s; "
           f"σ_pred = the filter's σ (RMS over the runs)")  # fmt: skip
-    print(cc.checks_table(checks, args.runs))
+    print(cc.checks_table(checks, n))
     late = (prediction.stamps_ns - prediction.stamps_ns[0]) * 1e-9 >= args.skip
     worst = ", ".join(f"{n} {100 * s:.1f} %" for n, s in
                       zip(cc.COMPONENTS, spread[late].max(axis=0), strict=True))  # fmt: skip
     print(f"\nspread of the runs' own σ (max/min − 1) over the epochs compared: {worst}")
     if args.plot is not None:
-        plot_checks(series, args.runs, args.plot, args.skip, f"aided filter: {what}")
+        plot_checks(series, n, args.plot, args.skip, f"aided filter: {what}")
         print(f"figure: {args.plot}")
     return 0
 
