@@ -27,8 +27,7 @@ from matplotlib.figure import Figure
 from strapdown_ros.analysis import covariance_check as cc
 from strapdown_ros.config import navigator_spec
 
-UNITS = ("m", "m", "m", "m/s", "m/s", "m/s", "mrad", "mrad", "mrad")
-SCALE = (1, 1, 1, 1, 1, 1, 1e3, 1e3, 1e3)
+UNITS, SCALE = cc.PLOT_UNITS, cc.PLOT_SCALE
 
 
 def plot(series: dict, errors: np.ndarray, n: int, path: Path) -> None:

@@ -35,8 +35,6 @@ from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic
 __all__ = ["AidedRun", "aided_prediction", "plot_checks", "read_aided_run"]
 
 _ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-_UNITS = ("m", "m", "m", "m/s", "m/s", "m/s", "mrad", "mrad", "mrad")
-_SCALE = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e3, 1e3, 1e3)
 
 
 @dataclass(frozen=True)
@@ -113,13 +111,14 @@ def plot_checks(series: dict[str, F64], n: int, path: Path, skip_s: float, title
     axes = fig.subplots(6, 3, sharex=True)
     for j, name in enumerate(cc.COMPONENTS):
         ax, rax = axes[2 * (j // 3), j % 3], axes[2 * (j // 3) + 1, j % 3]
-        pred, ens = series["sigma_pred"][:, j] * _SCALE[j], series["sigma_ens"][:, j] * _SCALE[j]
+        scale = cc.PLOT_SCALE[j]
+        pred, ens = series["sigma_pred"][:, j] * scale, series["sigma_ens"][:, j] * scale
         ax.fill_between(t, pred * lo, pred * hi, color="C0", alpha=0.2, lw=0,
                         label=f"χ²({n}) 95 %")  # fmt: skip
         ax.plot(t, pred, "C0", lw=1.0, label="σ_pred (filter)")
         ax.plot(t, ens, "C3", lw=0.6, label=f"σ_ens ({n} runs)")
         ax.set_yscale("log")
-        ax.set_title(f"{name} ({_UNITS[j]})", fontsize=9)
+        ax.set_title(f"{name} ({cc.PLOT_UNITS[j]})", fontsize=9)
         with np.errstate(invalid="ignore", divide="ignore"):
             rax.plot(t, ens / pred, "C3", lw=0.6)
         rax.axhspan(lo, hi, color="C0", alpha=0.2)

@@ -56,6 +56,8 @@ from strapdown_ros.messages import imu_increments
 
 __all__ = [
     "COMPONENTS",
+    "PLOT_SCALE",
+    "PLOT_UNITS",
     "ComponentCheck",
     "Ensemble",
     "Prediction",
@@ -75,6 +77,9 @@ _OFF_DIAG = ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))
 #: The 9 error components, as the campaign's ``errors.parquet`` columns.
 COMPONENTS = ("pos_n_m", "pos_e_m", "pos_d_m", "vel_n_mps", "vel_e_mps", "vel_d_mps",
               "att_1_rad", "att_2_rad", "att_3_rad")  # fmt: skip
+#: Units and scale of each component in figures (attitude in mrad).
+PLOT_UNITS = ("m", "m", "m", "m/s", "m/s", "m/s", "mrad", "mrad", "mrad")
+PLOT_SCALE = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1e3, 1e3, 1e3)
 
 
 def steps_from_bag(

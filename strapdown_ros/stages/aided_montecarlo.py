@@ -331,6 +331,18 @@ def _stack(arrays: list[np.ndarray]) -> np.ndarray:
     return np.stack([a[:k] for a in arrays])
 
 
+#: The NEES components of a run, in ``RunResult.nees``' column order.
+_NEES = ("position", "velocity", "attitude")
+
+
+def _nis_stack(results: list[RunResult], sensor: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """One sensor's NIS over the runs: the first run's stamps (K,) ns, the values (runs, K)
+    cut to the shortest run, the degrees of freedom."""
+    values = _stack([r.nis[sensor][1] for r in results])
+    first = results[0].nis[sensor]
+    return first[0][: values.shape[1]], values, int(first[2][0])
+
+
 @dataclass(frozen=True)
 class Consistency:
     """NEES (position, velocity, attitude), NIS per sensor and bias checks over the runs."""
@@ -361,16 +373,11 @@ def consistency(results: list[RunResult], convergence_s: float = 0.0) -> Consist
     t0 = results[0].stamps[0]
     keep = results[0].stamps - t0 >= convergence_s * 1e9
     nees = _stack([r.nees for r in results])[:, keep[: min(len(r.nees) for r in results)]]
-    out_nees = {n: fraction_inside(nees[:, :, i], 3) for i, n in
-                enumerate(("position", "velocity", "attitude"))}  # fmt: skip
+    out_nees = {n: fraction_inside(nees[:, :, i], 3) for i, n in enumerate(_NEES)}
     out_nis = {}
     for s in results[0].nis:
-        st = results[0].nis[s][0]
-        k = min(len(r.nis[s][1]) for r in results)
-        v = np.stack([r.nis[s][1][:k] for r in results])
-        dof = int(results[0].nis[s][2][0])
-        sel = st[:k] - t0 >= convergence_s * 1e9
-        out_nis[s] = fraction_inside(v[:, sel], dof)
+        st, v, dof = _nis_stack(results, s)
+        out_nis[s] = fraction_inside(v[:, st - t0 >= convergence_s * 1e9], dof)
     out_bias = {}
     for name, err, sig in (("gyro", "bias_gyro_error", "bias_gyro_sigma"),
                            ("accel", "bias_accel_error", "bias_accel_sigma")):  # fmt: skip
@@ -392,13 +399,11 @@ def average_series(results: list[RunResult]) -> dict[str, dict[str, Any]]:
     t = (results[0].stamps[: nees.shape[1]] - t0) * 1e-9
     out: dict[str, dict[str, Any]] = {"NEES": {
         n: AverageSeries(t, nees[:, :, i].mean(axis=0), 3, len(results))
-        for i, n in enumerate(("position", "velocity", "attitude"))}}  # fmt: skip
+        for i, n in enumerate(_NEES)}}  # fmt: skip
     nis: dict[str, Any] = {}
     for s in results[0].nis:
-        k = min(len(r.nis[s][1]) for r in results)
-        v = np.stack([r.nis[s][1][:k] for r in results])
-        ts = (results[0].nis[s][0][:k] - t0) * 1e-9
-        nis[s] = AverageSeries(ts, v.mean(axis=0), int(results[0].nis[s][2][0]), len(results))
+        st, v, dof = _nis_stack(results, s)
+        nis[s] = AverageSeries((st - t0) * 1e-9, v.mean(axis=0), dof, len(results))
     if nis:
         out["NIS"] = nis
     return out
