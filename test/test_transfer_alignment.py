@@ -176,3 +176,35 @@ def test_exact_mounting_error_converges_to_the_true_mounting(tmp_path):
     assert _norms(r, "/transfer/error/position").max() < 5e-5
     sig = r["/transfer/mounting/sigma"][late]
     assert np.all(sig < 1e-8)  # measured 5.1e-9 rad at 20 s
+
+
+@pytest.mark.slow  # compiles the filter's kernels
+def test_gauss_markov_estimates_decay_with_the_covariance():
+    """Between updates the Gauss–Markov bias estimates are the conditional mean of
+    ``ḃ = −b/τ + w``: ``b̂ e^{−Δt/τ}`` (τ = 300 s, Δt = 20 cycles of 5 ms); the random-constant
+    biases and the mounting hold."""
+    import dataclasses
+
+    from strapdown_ros.core.aided.layout import B_BA, B_BG, B_GMA, B_GMG
+    from strapdown_ros.core.aided.model import SensorModels, StateOptions, build_model
+    from strapdown_ros.core.imu_errors import ImuErrorParameters, SensorErrors
+    from strapdown_ros.core.transfer.filter import TransferFilter, TransferLayout
+
+    tau, T = 300.0, 0.005
+    sensor = dataclasses.replace(SensorErrors.zero(), turn_on_bias_sigma=np.full(3, 1e-5),
+                                 bias_instability=np.full(3, 1e-5),
+                                 correlation_time_s=np.full(3, tau))  # fmt: skip
+    model = build_model(ImuErrorParameters(sensor, sensor), T, SensorModels(),
+                        StateOptions(None, None, False))  # fmt: skip
+    lay = TransferLayout(model, False)
+    f = TransferFilter(lay, 5_000_000, "j2", np.array([6.4e6, 0.0, 0.0]), np.zeros(3),
+                       np.eye(3), np.eye(3), np.zeros(3), np.eye(lay.n) * 1e-6)  # fmt: skip
+    x0 = np.random.default_rng(3).normal(size=lay.n) * 1e-4
+    f.est[9:] = x0[9:]
+    f.propagate(np.zeros((20, 3)), np.zeros((20, 3)))
+    decay = np.exp(-20 * T / tau)
+    off = model.layout.offsets
+    for block, factor in ((B_GMG, decay), (B_GMA, decay), (B_BG, 1.0), (B_BA, 1.0)):
+        s = slice(int(off[block]), int(off[block]) + 3)
+        np.testing.assert_allclose(f.est[s], x0[s] * factor, rtol=1e-15)
+    np.testing.assert_array_equal(f.est[lay.i_mu : lay.i_mu + 3], x0[lay.i_mu : lay.i_mu + 3])

@@ -29,6 +29,7 @@ from strapdown_ros.core.aided._fields import gravitation_gradient
 from strapdown_ros.core.aided.dynamics import (
     continuous_noise,
     propagate_covariance,
+    propagate_estimates,
     sparse_dynamics,
     van_loan_series,
 )
@@ -185,6 +186,7 @@ class TransferFilter:
         qc = continuous_noise(np.ascontiguousarray(cm), self.layout.model.q_ins, self.q, self.ni)
         phi, qd = van_loan_series(rows, cols, vals, nnz, qc, dt)
         propagate_covariance(self.p, phi, qd, self.beta, self.q, dt, self.ni)
+        propagate_estimates(self.est, self.beta, dt)
 
     # -- updates --------------------------------------------------------------------------------
 
