@@ -7,8 +7,8 @@ not take (exit status 2) before ROS starts; then the node's ``main`` runs. Node 
 ROS arguments, ``NAME --ros-args -p name:=value [--params-file FILE]``: everything after
 ``--ros-args`` (up to a lone ``--``) is left to rclpy, except that a ``-p``/``--param`` naming
 no parameter of the node is an error here (rclpy would ignore it silently). Each node's
-``main`` calls :func:`front` too (``python -m strapdown_ros.nodes.NAME --help``; it does nothing
-the second time in a process).
+``main`` calls :func:`front` too, through ``run_node`` (``python -m strapdown_ros.nodes.NAME
+--help``; it does nothing the second time in a process).
 
 :data:`PARAMETERS` is what each node declares, in declaration order (checked against the nodes
 themselves by ``test/test_node_usage_params.py``; print it anew with
@@ -21,7 +21,7 @@ import difflib
 import importlib
 import sys
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 __all__ = ["DESCRIPTIONS", "PARAMETERS", "front", "usage"]
 
@@ -368,46 +368,17 @@ def front(name: str, args: Sequence[str] | None = None) -> None:
     _done.add(name)
 
 
-def _run(name: str) -> int:
-    front(name)
-    return importlib.import_module(f"strapdown_ros.nodes.{name}").main()
+def __getattr__(name: str) -> Callable[[], int]:
+    """The console script of node ``name`` (the entry points ``strapdown_ros.nodes.usage:NAME``
+    of setup.py, one per node of :data:`PARAMETERS`): :func:`front` before the node's module
+    (and rclpy) is imported, then the node's ``main``."""
+    if name not in PARAMETERS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+    def console_script() -> int:
+        front(name)
+        return importlib.import_module(f"strapdown_ros.nodes.{name}").main()
 
-def trajectory_node() -> int:
-    """Console script ``trajectory_node``."""
-    return _run("trajectory_node")
-
-
-def variation_node() -> int:
-    """Console script ``variation_node``."""
-    return _run("variation_node")
-
-
-def navigator_node() -> int:
-    """Console script ``navigator_node``."""
-    return _run("navigator_node")
-
-
-def imu_model_node() -> int:
-    """Console script ``imu_model_node``."""
-    return _run("imu_model_node")
-
-
-def aiding_node() -> int:
-    """Console script ``aiding_node``."""
-    return _run("aiding_node")
-
-
-def aided_node() -> int:
-    """Console script ``aided_node``."""
-    return _run("aided_node")
-
-
-def bag_recorder() -> int:
-    """Console script ``bag_recorder``."""
-    return _run("bag_recorder")
-
-
-def bag_player() -> int:
-    """Console script ``bag_player``."""
-    return _run("bag_player")
+    console_script.__name__ = console_script.__qualname__ = name
+    console_script.__doc__ = f"Console script ``{name}``."
+    return console_script
