@@ -74,6 +74,17 @@ DESCRIPTIONS: dict[str, str] = {
     ),
 }
 
+def _scenario(required: bool = True, what: str = "") -> tuple[tuple[str, object, str], ...]:
+    """``scenario``, ``overrides`` and ``duration_s``, as ``nodes.parameters.declare_scenario``
+    declares them (``what`` the node takes from the scenario)."""
+    return (
+        ("scenario", "", f"scenario YAML file{f' ({what})' if what else ''}"
+         + (" (required)" if required else "")),
+        ("overrides", [""], "scenario overrides dotted.key=value"),
+        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+    )  # fmt: skip
+
+
 #: What every batched-input node (nodes/_batched.py) declares: its QoS and batching ...
 _BATCHED_QOS: tuple[tuple[str, object, str], ...] = (
     ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
@@ -104,9 +115,7 @@ _BATCHED_TAIL: tuple[tuple[str, object, str], ...] = (
 #: Every parameter each node declares: (name, default, description), in declaration order.
 PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
     "trajectory_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         ("time_source", "sim", "sim | wall"),
         ("rate_factor", 1.0, "speed-up over real time; <= 0: as fast as possible"),
         ("imu_topic", "/reference/imu", "topic (default recording.topics.reference_imu)"),
@@ -125,9 +134,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("executor", "events", "rclpy executor: events | single_threaded"),
     ),
     "variation_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         ("reference_imu_topic", "/reference/imu", "topic (default recording.topics.reference_imu)"),
         (
             "reference_odom_topic",
@@ -156,9 +163,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "navigator_node": (
-        ("scenario", "", "scenario YAML file (its navigator section)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(False, "its navigator section"),
         ("algorithm", "", "multirate | simultaneous"),
         ("mode", "", "paper | exact"),
         ("imu_topic", "", "input Imu topic (default navigator.imu_topic, /variation/imu)"),
@@ -189,9 +194,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "imu_model_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         ("model", 0, "which imu_errors model (its index)"),
         ("input_topic", "/variation/imu", "ideal Imu topic (default imu_errors.input_topic)"),
         ("output_topic", "/variation/imu_measured", "measured Imu topic (imu_errors.output_topic)"),
@@ -200,9 +203,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "aiding_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         (
             "truth_topic",
             "/reference/odom",
@@ -213,17 +214,13 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "aided_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last IMU cycle or idle_timeout_s"),
         *_BATCHED_TAIL,
     ),
     "bag_recorder": (
-        ("scenario", "", "scenario YAML file (topic list)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(False, "topic list"),
         ("topics", [""], "topics to record: NAME[=pkg/msg/Type]"),
         ("output", "", "bag directory to write (required)"),
         ("storage", "", "mcap | sqlite3 (default: scenario's)"),
