@@ -12,15 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["ESTIMATE_TYPES", "Score", "ScoreError", "score_bag", "score_estimate"]
-
-#: The message types an estimate may have (read by :mod:`~strapdown_ros.score.estimate`; here,
-#: without imports, for the live scorer and its launch logic too).
-ESTIMATE_TYPES = (
-    "nav_msgs/msg/Odometry",
-    "geometry_msgs/msg/PoseWithCovarianceStamped",
-    "sensor_msgs/msg/NavSatFix",
-)
+__all__ = ["Score", "ScoreError", "score_bag", "score_estimate"]
 
 
 def __getattr__(name: str) -> Any:

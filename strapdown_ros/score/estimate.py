@@ -27,7 +27,7 @@ from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import _geodetic_to_ecef, dcm_ned_to_ecef
 from strapdown_ros.core.rotations import C_FRD_TO_FLU, C_NED_TO_ENU
 from strapdown_ros.messages import EARTH_FRAME, TFMessageFields, dcm_from_quat_ros
-from strapdown_ros.score import ESTIMATE_TYPES
+from strapdown_ros.score.estimate_types import ESTIMATE_TYPES
 
 __all__ = [
     "ESTIMATE_TYPES",

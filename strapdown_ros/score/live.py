@@ -42,7 +42,7 @@ from strapdown_ros.pipeline.processes import (
     list_param,
 )
 from strapdown_ros.pipeline.run import STARTUP_TIMEOUT_S, say_to_stderr
-from strapdown_ros.score import ESTIMATE_TYPES
+from strapdown_ros.score.estimate_types import ESTIMATE_TYPES
 
 __all__ = [
     "LiveInputError",

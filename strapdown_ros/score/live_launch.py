@@ -33,7 +33,7 @@ from strapdown_ros.launch_logic import (
     parse_command,
     parse_float,
 )
-from strapdown_ros.score import ESTIMATE_TYPES
+from strapdown_ros.score.estimate_types import ESTIMATE_TYPES
 
 __all__ = ["LiveSequence", "ScoreLivePlan", "Step", "plan_score_live"]
 
