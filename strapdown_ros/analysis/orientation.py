@@ -24,8 +24,7 @@ from strapdown_ros.core.young import young_error_angles
 from strapdown_ros.core.young_nonlinear import (
     OrientationInputs,
     drift_in_platform,
-    integrate_phi_angle,
-    integrate_young,
+    integrate_orientation,
     wrap_angle,
 )
 
@@ -223,8 +222,8 @@ def compare_orientation(
     theta0 = young_error_angles(
         record.navigator.c_b_n[rows[0]], record.truth.c_b_n[record.truth_index[rows[0]]]
     )
-    young = integrate_young(inputs, theta0, t, rtol=rtol, atol=atol)
-    linear = integrate_phi_angle(inputs, theta0, t, rtol=rtol, atol=atol)
+    young = integrate_orientation(inputs, theta0, t, rtol=rtol, atol=atol)
+    linear = integrate_orientation(inputs, theta0, t, method="phi_angle", rtol=rtol, atol=atol)
     act = record.theta_actual[rows]
     return OrientationComparison(
         t,

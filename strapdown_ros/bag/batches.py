@@ -28,7 +28,16 @@ from strapdown_ros.messages import (
 )
 from strapdown_ros.stages.intake import nonfinite_rows, stamp_span, stretches, without_rows
 
-__all__ = ["Batch", "batch", "clock_batch", "finite_outputs", "merge_order", "stream_batches"]
+__all__ = [
+    "Batch",
+    "batch",
+    "clock_batch",
+    "finite_outputs",
+    "header_stamps_ns",
+    "merge_order",
+    "stream_batches",
+    "subset",
+]
 
 F = TypeVar("F")
 #: Where :func:`batch` reports outputs it does not serialize when the caller gives no log.
@@ -42,6 +51,26 @@ class Batch(NamedTuple):
     msgtype: str
     stamps_ns: NDArray[np.int64]
     payloads: Sequence[bytes | memoryview]
+
+
+def header_stamps_ns(b: Batch) -> NDArray[np.int64] | None:
+    """The ``header.stamp`` (ns) of every message of ``b``, read from the CDR bytes without
+    decoding (bytes 4-12, after the encapsulation header); None when a payload is too short
+    to hold one (malformed: decode all and let the decoder say so)."""
+    head = b"".join(bytes(p[4:12]) for p in b.payloads)
+    if len(head) != 8 * len(b.payloads):
+        return None
+    raw = np.frombuffer(head, dtype=np.dtype([("sec", "<i4"), ("ns", "<u4")]))
+    return raw["sec"].astype(np.int64) * 1_000_000_000 + raw["ns"].astype(np.int64)
+
+
+def subset(b: Batch, need: NDArray[np.bool_]) -> Batch:
+    """The messages of ``b`` where ``need`` is true (``b`` itself when that is all of them)."""
+    keep = np.flatnonzero(need)
+    if len(keep) == len(b.payloads):
+        return b
+    return Batch(b.topic, b.msgtype, np.asarray(b.stamps_ns)[keep],
+                 [b.payloads[i] for i in keep])  # fmt: skip
 
 
 def finite_outputs(topic: str, fields: F, log: Callable[[str], None] | None = None

@@ -8,8 +8,8 @@ periods on the IMU grid). The filter: docs/aided.md; its theory: docs/theory/aid
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from collections.abc import Collection, Iterable, Sequence
+from typing import Annotated, Any, Literal
 
 from pydantic import BeforeValidator, Field, field_validator
 
@@ -22,10 +22,8 @@ from strapdown_ros.config.base import (
     check_frame_id,
     check_topic_name,
     enabled_section,
+    require_period_multiple,
 )
-
-if TYPE_CHECKING:
-    from strapdown_ros.config.aiding import AidingSpec
 
 __all__ = [
     "AIDED_SENSORS",
@@ -247,30 +245,27 @@ def aided_spec(scenario: Any) -> AidedSpec | None:
     return enabled_section(scenario, "aided")
 
 
-def check_aided(
-    spec: AidedSpec | None,
-    *,
-    topics: Mapping[str, str],
-    measured: Sequence[tuple[str, str]],
-    aiding: AidingSpec | None,
-    period_ns: int,
-) -> None:
-    """Cross-field rules of ``aided`` (called by the scenario's validation).
+def check_aided(scenario: Any) -> None:
+    """Cross-field rules of ``aided`` (called by the scenario's validation with itself).
 
-    ``topics``: ``recording.topics``; ``measured``: each ``imu_errors`` model's input and output
-    topics; ``aiding``: the aiding section; ``period_ns``: the IMU period.
-    The IMU topic must be the output of an ``imu_errors`` model on the reference IMU (the
-    aiding lever arms are measured from the reference IMU); the truth topic the reference
-    Odometry; the sensors used enabled in ``aiding``; the output and covariance periods whole
-    multiples of the IMU period; the output topics not another stream's.
+    They read ``recording.topics``, each ``imu_errors`` model's input and output topics, the
+    aiding section and the IMU period of ``scenario``. The IMU topic must be the output of an
+    ``imu_errors`` model on the reference IMU (the aiding lever arms are measured from the
+    reference IMU); the truth topic the reference Odometry; the sensors used enabled in
+    ``aiding``; the output and covariance periods whole multiples of the IMU period; the
+    output topics not another stream's.
 
     Raises
     ------
     ScenarioError
         Naming the key, e.g. ``aided.imu_topic``.
     """
-    if spec is None or not spec.enabled:
+    spec = aided_spec(scenario)
+    if spec is None:
         return
+    topics = scenario.recording.topics
+    measured = scenario.measured_imu_topics()
+    aiding = scenario.aiding
     reference = topics["reference_imu"]
     imu = spec.resolved_imu_topic(measured, reference)
     if imu is None:
@@ -302,17 +297,11 @@ def check_aided(
             raise ScenarioError(
                 "aided.sensors", f"{s} needs aiding.{SENSOR_SOURCE[s]} (not enabled)"
             )
-    t_ns = period_ns
     for key, rate, what in (
         ("aided.output_rate_hz", spec.output_rate_hz, "output"),
         ("aided.covariance_rate_hz", spec.covariance_rate_hz, "covariance"),
     ):
-        period = 1e9 / rate
-        if abs(period - round(period)) > 1e-6 or round(period) % t_ns:
-            raise ScenarioError(
-                key, f"the {what} period 1e9/{rate:g} = {period:g} ns is not a whole multiple "
-                f"of the IMU period T = {t_ns} ns",
-            )  # fmt: skip
+        require_period_multiple(key, rate, scenario.period_ns, what)
     used = set(topics.values())
     if aiding is not None:
         used |= set(aiding.topics())

@@ -174,6 +174,18 @@ def enabled_section(scenario: Any, key: str) -> Any:
     return spec if spec is not None and spec.enabled else None
 
 
+def require_period_multiple(key: str, rate_hz: float, period_ns: int, what: str = "") -> int:
+    """The period 1e9/``rate_hz`` (ns) of ``key`` (``what`` names it in the message), which must
+    be a whole multiple of the IMU period T = ``period_ns``; :class:`ScenarioError` if not."""
+    period = 1e9 / rate_hz
+    if abs(period - round(period)) > 1e-6 or round(period) % period_ns:
+        raise ScenarioError(
+            key, f"the {what + ' ' if what else ''}period 1e9/{rate_hz:g} = {period:g} ns is not "
+            f"a whole multiple of the IMU period T = {period_ns} ns",
+        )  # fmt: skip
+    return int(round(period))
+
+
 def required_section(scenario: Any, key: str) -> Any:
     """:func:`enabled_section`, or :class:`ScenarioError` under ``key`` when there is none."""
     spec = enabled_section(scenario, key)

@@ -313,20 +313,8 @@ class Scenario(Model):
             start_time_ns=self.start_time_ns,
             topics=topics,
         )
-        check_aided(
-            self.aided,
-            topics=topics,
-            measured=self.measured_imu_topics(),
-            aiding=self.aiding,
-            period_ns=self.period_ns,
-        )
-        check_transfer(
-            self.transfer_alignment,
-            topics=topics,
-            measured=self.measured_imu_topics(),
-            variation=self.variation,
-            period_ns=self.period_ns,
-        )
+        check_aided(self)
+        check_transfer(self)
         navigator = navigator_spec(self)
         check_navigator(navigator, topics, self.sections())
         check_variation(self.variation, self.rate_hz)

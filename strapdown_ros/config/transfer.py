@@ -8,8 +8,7 @@ docs/transfer_alignment.md.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, field_validator
 
@@ -23,10 +22,8 @@ from strapdown_ros.config.base import (
     Vector3,
     check_topic_name,
     enabled_section,
+    require_period_multiple,
 )
-
-if TYPE_CHECKING:
-    from strapdown_ros.config.variation import VariationSpec
 
 __all__ = [
     "TRANSFER_OUTPUTS",
@@ -151,28 +148,25 @@ def transfer_spec(scenario: Any) -> TransferAlignmentSpec | None:
     return enabled_section(scenario, "transfer_alignment")
 
 
-def check_transfer(
-    spec: TransferAlignmentSpec | None,
-    *,
-    topics: Mapping[str, str],
-    measured: Sequence[tuple[str, str]],
-    variation: VariationSpec | None,
-    period_ns: int,
-) -> None:
-    """Cross-field rules of ``transfer_alignment`` (called by the scenario's validation).
+def check_transfer(scenario: Any) -> None:
+    """Cross-field rules of ``transfer_alignment`` (called by the scenario's validation with
+    itself).
 
-    ``topics``: ``recording.topics``; ``measured``: each ``imu_errors`` model's input and
-    output topics; ``variation``: the variation section; ``period_ns``: the IMU
-    period.
+    They read ``recording.topics``, each ``imu_errors`` model's input and output topics, the
+    variation section and the IMU period of ``scenario``.
 
     Raises
     ------
     ScenarioError
         Naming the key, e.g. ``transfer_alignment.imu_topic``.
     """
-    if spec is None or not spec.enabled:
-        return
     key = "transfer_alignment"
+    spec = transfer_spec(scenario)
+    if spec is None:
+        return
+    topics = scenario.recording.topics
+    variation = scenario.variation
+    period_ns = scenario.period_ns
     if variation is None:
         raise ScenarioError(key, "needs a variation section (the slave IMU is the variation IMU)")
     if variation.scan is not None:
@@ -189,7 +183,7 @@ def check_transfer(
         raise ScenarioError(f"{key}", "needs variation.method: 2 (velocity constraint (10))")
     slave = topics["variation_imu"]
     allowed = {slave}
-    allowed |= {out for source, out in measured if source == slave}
+    allowed |= {out for source, out in scenario.measured_imu_topics() if source == slave}
     if spec.imu_topic not in allowed:
         raise ScenarioError(
             f"{key}.imu_topic", f"{spec.imu_topic} is neither the variation IMU {slave} nor "
@@ -201,11 +195,8 @@ def check_transfer(
     if spec.truth_topic != topics["variation_odom"]:
         raise ScenarioError(f"{key}.truth_topic",
                             f"must be the variation truth {topics['variation_odom']}")  # fmt: skip
-    period = 1e9 / spec.rate_hz
-    if abs(period - round(period)) > 1e-6 or round(period) % period_ns:
-        raise ScenarioError(f"{key}.rate_hz", f"the period 1e9/{spec.rate_hz:g} ns is not a "
-                            f"whole multiple of the IMU period T = {period_ns} ns")  # fmt: skip
-    if spec.velocity_transport == "central_difference" and (round(period) // period_ns) % 2:
+    period = require_period_multiple(f"{key}.rate_hz", spec.rate_hz, period_ns)
+    if spec.velocity_transport == "central_difference" and (period // period_ns) % 2:
         raise ScenarioError(
             f"{key}.rate_hz", "central_difference needs an even number of IMU cycles per "
             "measurement (Method 2 meets the velocity constraint at even cycles)",

@@ -17,12 +17,13 @@ indicated latitude, longitude and their rates on a time grid (interpolated with 
 splines, so the rates are the derivatives of the positions between samples) and the
 cumulative gyro error angle ``D^P(t) = ∫ d^P dt`` (a cubic spline whose derivative is d^P).
 
-Three integrators of the same model (scipy ``solve_ivp``, DOP853):
+Three integrators of the same model, the ``method`` of :func:`integrate_orientation` (scipy
+``solve_ivp``, DOP853):
 
-* :func:`integrate_young`: the Euler angles θ by eq. (51) (singular at θ2 = ±90°);
-* :func:`integrate_young_dcm`: H itself by ``Ḣ = Δ^M H - H Ψ^P`` (eqs. (29), (48)), θ by eq.
-  (28) at the output times — the same physics without eqs. (30), (31), (50), (51);
-* :func:`integrate_phi_angle`: the small-angle (linear) limit, the phi-angle model
+* ``young``: the Euler angles θ by eq. (51) (singular at θ2 = ±90°);
+* ``young_dcm``: H itself by ``Ḣ = Δ^M H - H Ψ^P`` (eqs. (29), (48)), θ by eq. (28) at the
+  output times — the same physics without eqs. (30), (31), (50), (51);
+* ``phi_angle``: the small-angle (linear) limit, the phi-angle model
   ``θ̇ = -ψ^P × θ + (δ_0^M - ψ^P) - d^P`` (Titterton & Weston 2004 §12.2; Savage 2000 §12).
 """
 
@@ -48,13 +49,12 @@ from strapdown_ros.core.young import (
 )
 
 __all__ = [
+    "METHODS",
     "FrameTrack",
     "OrientationInputs",
     "OrientationSolution",
     "drift_in_platform",
-    "integrate_phi_angle",
-    "integrate_young",
-    "integrate_young_dcm",
+    "integrate_orientation",
     "phi_angle_rates",
     "wrap_angle",
 ]
@@ -268,68 +268,6 @@ def _times(inputs: OrientationInputs, t_eval: ArrayLike | None) -> F64:
     return t
 
 
-def integrate_young(
-    inputs: OrientationInputs,
-    theta0: ArrayLike,
-    t_eval: ArrayLike | None = None,
-    *,
-    rtol: float = RTOL,
-    atol: float = ATOL,
-    max_step: float = np.inf,
-) -> OrientationSolution:
-    """θ(t) by Young 1980 eqs. (51a)–(51c) from θ(t_eval[0]) = ``theta0`` (rad).
-
-    δ^M = δ_0^M + ε^M with ``ε^M = -H(θ) d^P`` (module docstring). ``t_eval``: output times
-    (default: the indicated track's times within the inputs' span); the first is the start.
-    """
-    t = _times(inputs, t_eval)
-    f = inputs.rates()
-
-    def rhs(tt: float, th: F64) -> F64:
-        delta0, psi, d_p = f(tt)
-        delta = delta0 - young_dcm(th) @ d_p
-        return young_angle_rates(th, delta, psi)
-
-    y, nfev = _solve(rhs, np.asarray(theta0, dtype=np.float64), t, rtol, atol, max_step)
-    return OrientationSolution(t, y, nfev)
-
-
-def integrate_young_dcm(
-    inputs: OrientationInputs,
-    theta0: ArrayLike,
-    t_eval: ArrayLike | None = None,
-    *,
-    rtol: float = RTOL,
-    atol: float = ATOL,
-    max_step: float = np.inf,
-) -> OrientationSolution:
-    """θ(t) from H integrated directly: ``Ḣ = Δ^M H - H Ψ^P`` (eqs. (29), (48)).
-
-    Young operators (eq. (8)) ``Δ^M = young_operator(δ_0^M - H d^P)``, ``Ψ^P =
-    young_operator(ψ^P)``; θ by eq. (28) inverted at the output times.
-
-    No Euler-angle kinematics (eqs. (30), (31), (50), (51)) are used, and there is no
-    singularity: a check of those equations and an oracle for θ2 near ±90°. θ1 and θ3 are
-    unwrapped along the output.
-    """
-    t = _times(inputs, t_eval)
-    f = inputs.rates()
-
-    def rhs(tt: float, y: F64) -> F64:
-        h = y.reshape(3, 3)
-        delta0, psi, d_p = f(tt)
-        delta = delta0 - h @ d_p
-        return (young_operator(delta) @ h - h @ young_operator(psi)).ravel()
-
-    th0 = np.asarray(theta0, dtype=np.float64)
-    y, nfev = _solve(rhs, young_dcm(th0).ravel(), t, rtol, atol, max_step)
-    theta = young_angles_from_dcm(y.reshape(-1, 3, 3))
-    for i in (0, 2):  # continuous, starting at θ0's branch
-        theta[:, i] = np.unwrap(theta[:, i])
-        theta[:, i] += 2.0 * np.pi * np.round((th0[i] - theta[0, i]) / (2.0 * np.pi))
-    return OrientationSolution(t, theta, nfev)
-
-
 def phi_angle_rates(
     theta: ArrayLike, delta0_m: ArrayLike, psi_p: ArrayLike, drift_p: ArrayLike
 ) -> F64:
@@ -344,22 +282,76 @@ def phi_angle_rates(
     return -np.cross(psi, theta) + (np.asarray(delta0_m) - psi) - np.asarray(drift_p)
 
 
-def integrate_phi_angle(
+#: The integrators of :func:`integrate_orientation` (module docstring).
+METHODS = ("young", "young_dcm", "phi_angle")
+
+
+def _young_rhs(f: Callable[[float], tuple[F64, F64, F64]]) -> Callable[[float, F64], F64]:
+    """θ̇ by eq. (51) with ``δ^M = δ_0^M - H(θ) d^P``."""
+
+    def rhs(tt: float, th: F64) -> F64:
+        delta0, psi, d_p = f(tt)
+        return young_angle_rates(th, delta0 - young_dcm(th) @ d_p, psi)
+
+    return rhs
+
+
+def _young_dcm_rhs(f: Callable[[float], tuple[F64, F64, F64]]) -> Callable[[float, F64], F64]:
+    """``Ḣ = Δ^M H - H Ψ^P`` (H flattened) with ``Δ^M = young_operator(δ_0^M - H d^P)``."""
+
+    def rhs(tt: float, y: F64) -> F64:
+        h = y.reshape(3, 3)
+        delta0, psi, d_p = f(tt)
+        return (young_operator(delta0 - h @ d_p) @ h - h @ young_operator(psi)).ravel()
+
+    return rhs
+
+
+def _phi_angle_rhs(f: Callable[[float], tuple[F64, F64, F64]]) -> Callable[[float, F64], F64]:
+    """θ̇ of the phi-angle model :func:`phi_angle_rates`."""
+
+    def rhs(tt: float, th: F64) -> F64:
+        return phi_angle_rates(th, *f(tt))
+
+    return rhs
+
+
+def integrate_orientation(
     inputs: OrientationInputs,
     theta0: ArrayLike,
     t_eval: ArrayLike | None = None,
     *,
+    method: str = "young",
     rtol: float = RTOL,
     atol: float = ATOL,
     max_step: float = np.inf,
 ) -> OrientationSolution:
-    """θ(t) of the linear (phi-angle) model :func:`phi_angle_rates` on the same inputs."""
+    """θ(t) from θ(t_eval[0]) = ``theta0`` (rad) by one of :data:`METHODS`.
+
+    * ``"young"``: Young 1980 eqs. (51a)–(51c), ``δ^M = δ_0^M + ε^M`` with ``ε^M = -H(θ) d^P``
+      (module docstring); singular at θ2 = ±90°.
+    * ``"young_dcm"``: H integrated directly, ``Ḣ = Δ^M H - H Ψ^P`` (eqs. (29), (48)), with the
+      Young operators (eq. (8)) ``Δ^M = young_operator(δ_0^M - H d^P)``, ``Ψ^P =
+      young_operator(ψ^P)``; θ by eq. (28) inverted at the output times. No Euler-angle
+      kinematics (eqs. (30), (31), (50), (51)) and no singularity: a check of those equations
+      and an oracle for θ2 near ±90°. θ1 and θ3 are unwrapped along the output.
+    * ``"phi_angle"``: the linear (phi-angle) model :func:`phi_angle_rates`.
+
+    ``t_eval``: output times (default: the indicated track's times within the inputs' span);
+    the first is the start.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method {method!r} is not one of {', '.join(METHODS)}")
     t = _times(inputs, t_eval)
     f = inputs.rates()
-
-    def rhs(tt: float, th: F64) -> F64:
-        delta0, psi, d_p = f(tt)
-        return phi_angle_rates(th, delta0, psi, d_p)
-
-    y, nfev = _solve(rhs, np.asarray(theta0, dtype=np.float64), t, rtol, atol, max_step)
-    return OrientationSolution(t, y, nfev)
+    th0 = np.asarray(theta0, dtype=np.float64)
+    if method != "young_dcm":
+        rhs = _young_rhs(f) if method == "young" else _phi_angle_rhs(f)
+        y, nfev = _solve(rhs, th0, t, rtol, atol, max_step)
+        return OrientationSolution(t, y, nfev)
+    y, nfev = _solve(_young_dcm_rhs(f), young_dcm(th0).ravel(), t, rtol, atol, max_step)
+    theta = young_angles_from_dcm(y.reshape(-1, 3, 3))
+    for i in (0, 2):  # continuous, starting at θ0's branch
+        theta[:, i] = np.unwrap(theta[:, i])
+        theta[:, i] += 2.0 * np.pi * np.round((th0[i] - theta[0, i]) / (2.0 * np.pi))
+    return OrientationSolution(t, theta, nfev)

@@ -32,7 +32,7 @@ from strapdown_ros.nodes.message_types import message_class
 from strapdown_ros.nodes.parameters import ParameterError, declare_bool
 from strapdown_ros.nodes.qos import qos_from_parameters
 
-__all__ = ["BatchedInputNode"]
+__all__ = ["BatchedInputNode", "StageInputNode"]
 
 #: Seconds to wait for the subscribers' acknowledgements when done, then the grace period.
 DRAIN_TIMEOUT_S = 10.0
@@ -48,12 +48,15 @@ class BatchedInputNode(Node):
     override :meth:`_subscribe`, :meth:`_idle_stop` and :meth:`_summary` (and :meth:`_failure`
     if the input can make the node give up). By default a batch goes to ``self.solver`` (an
     object with ``on_batch(items) -> [(topic, stamp_ns, payload)]``, ``started`` and
-    ``finished``); a node without one overrides :meth:`_process`, :attr:`started` and
-    :attr:`finished`. :meth:`_publish` sends serialized outputs and counts them per topic.
+    ``finished``); a node without one overrides :meth:`_process` and :attr:`finished`, and
+    :attr:`started` (or is a :class:`StageInputNode`). :meth:`_publish` sends serialized
+    outputs and counts them per topic.
     """
 
     batch: InputBatch
     run_control: RunControl
+    #: Batches :meth:`_process` has taken so far.
+    batches_processed = 0
 
     def declare_batched_input(self, done: str) -> None:
         """Declare the QoS (:attr:`qos`), ``batch_period_s`` and the run-control parameters
@@ -221,6 +224,7 @@ class BatchedInputNode(Node):
             if batch.due():
                 items = batch.take()
                 self._process(items)
+                self.batches_processed += 1
                 if reporter is not None:
                     for kind, n in Counter(map(itemgetter(0), items)).items():
                         self.taken[topic_of[kind]] += n
@@ -250,3 +254,19 @@ class BatchedInputNode(Node):
             self.get_logger().info(self._full_summary(wall, cpu))
         drain_publishers(self, pubs, spin, DRAIN_TIMEOUT_S, GRACE_S)
         return status
+
+
+class StageInputNode(BatchedInputNode):
+    """A :class:`BatchedInputNode` whose :meth:`_process` feeds a stage ``self.stream`` itself
+    (no ``solver``): started once it has processed a batch; its input events the stage's."""
+
+    stream: Any
+
+    @property
+    def started(self) -> bool:
+        return self.batches_processed > 0
+
+    @property
+    def input_events(self) -> Any:
+        """The stage's input events (counted in the end-of-run summary)."""
+        return self.stream.events

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from strapdown_ros.bag.batches import Batch, merge_order
-from strapdown_ros.nodes._batched import BatchedInputNode
+from strapdown_ros.nodes._batched import StageInputNode
 from strapdown_ros.nodes.lifecycle import run_node
 from strapdown_ros.nodes.parameters import declare_scenario
 from strapdown_ros.plan import resolve_plan
@@ -45,7 +45,7 @@ def header_stamps(payloads: list[bytes | memoryview]) -> np.ndarray:
     return out
 
 
-class AidedNode(BatchedInputNode):
+class AidedNode(StageInputNode):
     """Measured IMU, truth and aiding measurements in; the aided solution out."""
 
     def __init__(self) -> None:
@@ -67,7 +67,6 @@ class AidedNode(BatchedInputNode):
         for topic in self.stream.topics.values():
             self.add_output(topic, types[topic])
         self._input_subs: list[Any] = []
-        self._started = False
         log.info(
             f"scenario {scenario.path} ({scenario.name}): aided INS on "
             f"{', '.join(self.stream.sensors)}; inputs {', '.join(self.input_types)}; "
@@ -82,7 +81,6 @@ class AidedNode(BatchedInputNode):
         return ", ".join(self.input_types)
 
     def _process(self, items: list[Any]) -> None:
-        self._started = True
         by_topic: dict[str, list[bytes | memoryview]] = {}
         for topic, payload in items:
             by_topic.setdefault(topic, []).append(payload)
@@ -95,21 +93,12 @@ class AidedNode(BatchedInputNode):
         self._publish((out[k].topic, t, out[k].payloads[i]) for k, i, t in merge_order(out))
 
     @property
-    def started(self) -> bool:
-        return self._started
-
-    @property
     def finished(self) -> bool:
         """The scenario's last IMU cycle has been processed (or an IMU gap ended the filter)."""
         done = self.stream.done_until
         if self.stream.stopped:
             return True
         return done is not None and self.last_imu_ns is not None and done >= self.last_imu_ns
-
-    @property
-    def input_events(self) -> Any:
-        """The stage's input events (counted in the end-of-run summary)."""
-        return self.stream.events
 
     def _idle_stop(self) -> None:
         done = self.stream.done_until
@@ -129,7 +118,4 @@ class AidedNode(BatchedInputNode):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(AidedNode, NODE_NAME, args)

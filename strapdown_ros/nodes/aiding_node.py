@@ -16,7 +16,7 @@ from typing import Any
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import merge_order
 from strapdown_ros.config import ScenarioError
-from strapdown_ros.nodes._batched import BatchedInputNode
+from strapdown_ros.nodes._batched import StageInputNode
 from strapdown_ros.nodes.lifecycle import run_node
 from strapdown_ros.nodes.parameters import ParameterError, declare_scenario, declare_string
 from strapdown_ros.plan import resolve_plan
@@ -25,7 +25,7 @@ from strapdown_ros.stages.aiding import AIDING_MSGTYPES, AidingStage, aiding_spe
 NODE_NAME = "aiding_node"
 
 
-class AidingNode(BatchedInputNode):
+class AidingNode(StageInputNode):
     """Truth Odometry in; aiding measurements out."""
 
     def __init__(self) -> None:
@@ -53,7 +53,6 @@ class AidingNode(BatchedInputNode):
         plan = resolve_plan(scenario)
         self.last_truth_ns = plan.last_stamp(scenario.recording.topics["reference_odom"])
         self._subscription = None
-        self._started = False
         log.info(
             f"scenario {scenario.path} ({scenario.name}): aiding sensors "
             f"{', '.join(spec.sensors())}; input {self.truth_topic}; outputs "
@@ -69,20 +68,10 @@ class AidingNode(BatchedInputNode):
         return self.truth_topic
 
     def _process(self, items: list[Any]) -> None:
-        self._started = True
         batches = self.stream.on_payloads([payload for _, payload in items])
         self._publish(
             (batches[k].topic, t, batches[k].payloads[i]) for k, i, t in merge_order(batches)
         )
-
-    @property
-    def started(self) -> bool:
-        return self._started
-
-    @property
-    def input_events(self) -> Any:
-        """The stage's input events (counted in the end-of-run summary)."""
-        return self.stream.events
 
     @property
     def finished(self) -> bool:
@@ -99,7 +88,4 @@ class AidingNode(BatchedInputNode):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(AidingNode, NODE_NAME, args)

@@ -389,7 +389,4 @@ def _parse_remaps(specs: list[str]) -> dict[str, str]:
 
 def main(args: list[str] | None = None) -> int:
     """Run the player; return the exit status (0 played, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(BagPlayer, NODE_NAME, args)

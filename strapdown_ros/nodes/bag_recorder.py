@@ -530,7 +530,4 @@ def _parse_topics(specs: list[str]) -> dict[str, str | None]:
 
 def main(args: list[str] | None = None) -> int:
     """Run the recorder; return the exit status (0 recorded, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(BagRecorder, NODE_NAME, args)

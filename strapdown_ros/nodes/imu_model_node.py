@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import Any
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.nodes._batched import BatchedInputNode
+from strapdown_ros.nodes._batched import StageInputNode
 from strapdown_ros.nodes._tf import derived_outputs
 from strapdown_ros.nodes.lifecycle import run_node
 from strapdown_ros.nodes.parameters import (
@@ -31,7 +31,7 @@ from strapdown_ros.stages.tf import TFStage
 NODE_NAME = "imu_model_node"
 
 
-class ImuModelNode(BatchedInputNode):
+class ImuModelNode(StageInputNode):
     """Ideal Imu in; measured Imu out."""
 
     def __init__(self) -> None:
@@ -77,7 +77,6 @@ class ImuModelNode(BatchedInputNode):
         for topic, msgtype in self.derived.items():
             self.add_output(topic, msgtype)
         self._subscription = None
-        self._started = False
         spec = self.stream.spec
         end = "" if self.last_cycle is None else f" up to cycle {self.last_cycle}"
         log.info(
@@ -94,7 +93,6 @@ class ImuModelNode(BatchedInputNode):
         return self.input_topic
 
     def _process(self, items: list[Any]) -> None:
-        self._started = True
         out = self.stream.on_payloads([payload for _, payload in items])
         published = [(self.output_topic, 0, data) for data in out]
         if self.derived and published:
@@ -103,17 +101,9 @@ class ImuModelNode(BatchedInputNode):
         self._publish(published)
 
     @property
-    def started(self) -> bool:
-        return self._started
-
-    @property
     def finished(self) -> bool:
         """The last cycle of the scenario's input stream has been processed."""
         return self.last_cycle is not None and self.stream.last_cycle >= self.last_cycle
-
-    @property
-    def input_events(self) -> Any:
-        return self.stream.events
 
     def _idle_stop(self) -> None:
         timeout = self.run_control.idle_timeout_s
@@ -135,7 +125,4 @@ class ImuModelNode(BatchedInputNode):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(ImuModelNode, NODE_NAME, args)

@@ -29,6 +29,7 @@ from strapdown_ros.nodes.parameters import (
     declare_string,
 )
 from strapdown_ros.nodes.signals import STOP_SIGNALS, hangup_as_terminate
+from strapdown_ros.nodes.usage import front
 
 __all__ = [
     "EXECUTORS",
@@ -100,7 +101,9 @@ def _shut_down(node: Any, executor: Executor | None) -> None:
 
 
 def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None = None) -> int:
-    """Entry point shared by the nodes: init, build, ``node.run(executor)``, clean shutdown.
+    """Entry point shared by the nodes: ``--help``, bad arguments and the library versions
+    (:func:`~strapdown_ros.nodes.usage.front`, before rclpy starts), then init, build,
+    ``node.run(executor)``, clean shutdown.
 
     The executor is chosen by the node parameter ``executor`` (:func:`make_executor`; default
     ``events``). Exit status: 0 done or stopped by SIGINT/SIGTERM/SIGHUP, 1 failure while
@@ -108,6 +111,7 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
     """
     from strapdown_ros.config import ScenarioError
 
+    front(name, args)
     try:
         rclpy.init(args=args)
     except Exception as exc:  # rcl's RCLError: e.g. an unparsable --ros-args rule

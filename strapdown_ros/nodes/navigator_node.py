@@ -170,7 +170,4 @@ class NavigatorNode(BatchedInputNode):
 
 def main(args: list[str] | None = None) -> int:
     """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(NavigatorNode, NODE_NAME, args)

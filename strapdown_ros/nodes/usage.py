@@ -7,8 +7,8 @@ not take (exit status 2) before ROS starts; then the node's ``main`` runs. Node 
 ROS arguments, ``NAME --ros-args -p name:=value [--params-file FILE]``: everything after
 ``--ros-args`` (up to a lone ``--``) is left to rclpy, except that a ``-p``/``--param`` naming
 no parameter of the node is an error here (rclpy would ignore it silently). Each node's
-``main`` calls :func:`front` too (``python -m strapdown_ros.nodes.NAME --help``; it does nothing
-the second time in a process).
+``main`` calls :func:`front` too, through ``run_node`` (``python -m strapdown_ros.nodes.NAME
+--help``; it does nothing the second time in a process).
 
 :data:`PARAMETERS` is what each node declares, in declaration order (checked against the nodes
 themselves by ``test/test_node_usage_params.py``; print it anew with
@@ -21,7 +21,7 @@ import difflib
 import importlib
 import sys
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 __all__ = ["DESCRIPTIONS", "PARAMETERS", "front", "usage"]
 
@@ -74,6 +74,17 @@ DESCRIPTIONS: dict[str, str] = {
     ),
 }
 
+def _scenario(required: bool = True, what: str = "") -> tuple[tuple[str, object, str], ...]:
+    """``scenario``, ``overrides`` and ``duration_s``, as ``nodes.parameters.declare_scenario``
+    declares them (``what`` the node takes from the scenario)."""
+    return (
+        ("scenario", "", f"scenario YAML file{f' ({what})' if what else ''}"
+         + (" (required)" if required else "")),
+        ("overrides", [""], "scenario overrides dotted.key=value"),
+        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+    )  # fmt: skip
+
+
 #: What every batched-input node (nodes/_batched.py) declares: its QoS and batching ...
 _BATCHED_QOS: tuple[tuple[str, object, str], ...] = (
     ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
@@ -104,9 +115,7 @@ _BATCHED_TAIL: tuple[tuple[str, object, str], ...] = (
 #: Every parameter each node declares: (name, default, description), in declaration order.
 PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
     "trajectory_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         ("time_source", "sim", "sim | wall"),
         ("rate_factor", 1.0, "speed-up over real time; <= 0: as fast as possible"),
         ("imu_topic", "/reference/imu", "topic (default recording.topics.reference_imu)"),
@@ -125,9 +134,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("executor", "events", "rclpy executor: events | single_threaded"),
     ),
     "variation_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         ("reference_imu_topic", "/reference/imu", "topic (default recording.topics.reference_imu)"),
         (
             "reference_odom_topic",
@@ -156,9 +163,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "navigator_node": (
-        ("scenario", "", "scenario YAML file (its navigator section)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(False, "its navigator section"),
         ("algorithm", "", "multirate | simultaneous"),
         ("mode", "", "paper | exact"),
         ("imu_topic", "", "input Imu topic (default navigator.imu_topic, /variation/imu)"),
@@ -189,9 +194,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "imu_model_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         ("model", 0, "which imu_errors model (its index)"),
         ("input_topic", "/variation/imu", "ideal Imu topic (default imu_errors.input_topic)"),
         ("output_topic", "/variation/imu_measured", "measured Imu topic (imu_errors.output_topic)"),
@@ -200,9 +203,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "aiding_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         (
             "truth_topic",
             "/reference/odom",
@@ -213,17 +214,13 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_BATCHED_TAIL,
     ),
     "aided_node": (
-        ("scenario", "", "scenario YAML file (required)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(),
         *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last IMU cycle or idle_timeout_s"),
         *_BATCHED_TAIL,
     ),
     "bag_recorder": (
-        ("scenario", "", "scenario YAML file (topic list)"),
-        ("overrides", [""], "scenario overrides dotted.key=value"),
-        ("duration_s", 0.0, "duration (s); 0 = the scenario's"),
+        *_scenario(False, "topic list"),
         ("topics", [""], "topics to record: NAME[=pkg/msg/Type]"),
         ("output", "", "bag directory to write (required)"),
         ("storage", "", "mcap | sqlite3 (default: scenario's)"),
@@ -368,46 +365,17 @@ def front(name: str, args: Sequence[str] | None = None) -> None:
     _done.add(name)
 
 
-def _run(name: str) -> int:
-    front(name)
-    return importlib.import_module(f"strapdown_ros.nodes.{name}").main()
+def __getattr__(name: str) -> Callable[[], int]:
+    """The console script of node ``name`` (the entry points ``strapdown_ros.nodes.usage:NAME``
+    of setup.py, one per node of :data:`PARAMETERS`): :func:`front` before the node's module
+    (and rclpy) is imported, then the node's ``main``."""
+    if name not in PARAMETERS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+    def console_script() -> int:
+        front(name)
+        return importlib.import_module(f"strapdown_ros.nodes.{name}").main()
 
-def trajectory_node() -> int:
-    """Console script ``trajectory_node``."""
-    return _run("trajectory_node")
-
-
-def variation_node() -> int:
-    """Console script ``variation_node``."""
-    return _run("variation_node")
-
-
-def navigator_node() -> int:
-    """Console script ``navigator_node``."""
-    return _run("navigator_node")
-
-
-def imu_model_node() -> int:
-    """Console script ``imu_model_node``."""
-    return _run("imu_model_node")
-
-
-def aiding_node() -> int:
-    """Console script ``aiding_node``."""
-    return _run("aiding_node")
-
-
-def aided_node() -> int:
-    """Console script ``aided_node``."""
-    return _run("aided_node")
-
-
-def bag_recorder() -> int:
-    """Console script ``bag_recorder``."""
-    return _run("bag_recorder")
-
-
-def bag_player() -> int:
-    """Console script ``bag_player``."""
-    return _run("bag_player")
+    console_script.__name__ = console_script.__qualname__ = name
+    console_script.__doc__ = f"Console script ``{name}``."
+    return console_script

@@ -148,7 +148,4 @@ def _check_settings(scenario: Scenario) -> tuple[int, str]:
 
 def main(args: list[str] | None = None) -> int:
     """Run the node; return the exit status (0 done, 1 failure, 2 invalid input)."""
-    from strapdown_ros.nodes.usage import front
-
-    front(NODE_NAME, args)  # --help, bad arguments, library versions: before rclpy starts
     return run_node(VariationNode, NODE_NAME, args)

@@ -27,6 +27,7 @@ from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import _geodetic_to_ecef, dcm_ned_to_ecef
 from strapdown_ros.core.rotations import C_FRD_TO_FLU, C_NED_TO_ENU
 from strapdown_ros.messages import EARTH_FRAME, TFMessageFields, dcm_from_quat_ros
+from strapdown_ros.score.estimate_types import ESTIMATE_TYPES
 
 __all__ = [
     "ESTIMATE_TYPES",
@@ -37,11 +38,7 @@ __all__ = [
 ]
 
 
-ODOMETRY = "nav_msgs/msg/Odometry"
-NAVSATFIX = "sensor_msgs/msg/NavSatFix"
-POSE_COV = "geometry_msgs/msg/PoseWithCovarianceStamped"
-#: The message types an estimate may have.
-ESTIMATE_TYPES = (ODOMETRY, NAVSATFIX, POSE_COV)
+ODOMETRY, POSE_COV, NAVSATFIX = ESTIMATE_TYPES
 
 #: ``D = diag(1, -1, -1)``: FRD ↔ FLU (its own inverse).
 D = C_FRD_TO_FLU

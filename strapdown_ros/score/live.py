@@ -42,9 +42,9 @@ from strapdown_ros.pipeline.processes import (
     list_param,
 )
 from strapdown_ros.pipeline.run import STARTUP_TIMEOUT_S, say_to_stderr
+from strapdown_ros.score.estimate_types import ESTIMATE_TYPES
 
 __all__ = [
-    "ESTIMATE_TYPES",
     "LiveInputError",
     "LiveRecording",
     "LiveScoreError",
@@ -53,12 +53,6 @@ __all__ = [
     "record_live_estimate",
 ]
 
-#: The estimate types the scorer reads (strapdown_ros/score/estimate.py).
-ESTIMATE_TYPES = (
-    "nav_msgs/msg/Odometry",
-    "geometry_msgs/msg/PoseWithCovarianceStamped",
-    "sensor_msgs/msg/NavSatFix",
-)
 #: Seconds the user's node has after SIGINT, then after SIGTERM, before SIGKILL.
 NODE_STOP_GRACE_S = 5.0
 #: Name of the user's node in the logs directory (``<out>.logs/node.log``).

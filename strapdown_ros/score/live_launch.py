@@ -33,15 +33,10 @@ from strapdown_ros.launch_logic import (
     parse_command,
     parse_float,
 )
+from strapdown_ros.score.estimate_types import ESTIMATE_TYPES
 
-__all__ = ["ESTIMATE_TYPES", "LiveSequence", "ScoreLivePlan", "Step", "plan_score_live"]
+__all__ = ["LiveSequence", "ScoreLivePlan", "Step", "plan_score_live"]
 
-#: The estimate types the scorer reads (as strapdown_ros.score.live, without its imports).
-ESTIMATE_TYPES = (
-    "nav_msgs/msg/Odometry",
-    "geometry_msgs/msg/PoseWithCovarianceStamped",
-    "sensor_msgs/msg/NavSatFix",
-)
 #: The processes' names in the steps.
 NODE, PLAYER, RECORDER, SCORE = "node", "bag_player", "bag_recorder", "score"
 

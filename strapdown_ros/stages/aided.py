@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.batches import Batch, header_stamps_ns, subset
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.aided import SENSOR_SOURCE, AidedSpec, aided_spec
 from strapdown_ros.config.aiding import AIDING_TOPICS, GnssSpec
@@ -469,24 +469,16 @@ class AidedStage:
     def _needed_truth_messages(self, b: Batch) -> Batch:
         """The messages of a truth batch whose header stamp (read from the CDR bytes) the
         filter needs: every cycle until it starts, then the output epochs."""
-        head = b"".join(bytes(p[4:12]) for p in b.payloads)
-        if len(head) != 8 * len(b.payloads):
-            return b  # a short (malformed) message: decode all and let the decoder say so
-        raw = np.frombuffer(head, dtype=np.dtype([("sec", "<i4"), ("ns", "<u4")]))
-        t = raw["sec"].astype(np.int64) * 1_000_000_000 + raw["ns"].astype(np.int64)
+        t = header_stamps_ns(b)
+        if t is None:
+            return b
         on_output = (t % self.out_period == 0) & (t >= (self.start_ns or self.t0))
         if self.filter is None:  # the first few start candidates, then the output epochs
             cand = np.flatnonzero((t >= self.t0) & ((t - self.t0) % self.T == 0))
             room = max(0, START_CANDIDATES - self._candidates)
             on_output[cand[:room]] = True
             self._candidates += min(room, len(cand))
-        need = on_output
-        keep = np.flatnonzero(need)
-        if len(keep) == len(b.payloads):
-            return b
-        return Batch(b.topic, b.msgtype, np.asarray(b.stamps_ns)[keep],
-                     [b.payloads[i] for i in keep])  # fmt: skip
-
+        return subset(b, on_output)
 
     def _take_truth(self, f: Any) -> None:
         if f.frame_id != self.earth_frame:

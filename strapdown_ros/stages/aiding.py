@@ -35,7 +35,6 @@ from strapdown_ros.config import Scenario, ScenarioError
 from strapdown_ros.config.aiding import (
     AIDING_TOPICS,
     AidingSpec,
-    BarometerSpec,
     GnssSpec,
     MagnetometerSpec,
     WheelOdometerSpec,
@@ -186,9 +185,15 @@ def _diag(values: np.ndarray, size: int, n: int) -> np.ndarray:
 
 
 class _Channel:
-    """One sensor: its epochs, its error model and the messages it builds."""
+    """One sensor: its epochs, its error model and the messages it builds.
+
+    ``error_model``: the core model's class, built from the spec's ``errors()``, the period
+    (s) and the seed; ``lever``: the sensor from the reference IMU (body FRD, m; zero for a
+    sensor without ``lever_arm_m``, the magnetometer, which is at the IMU).
+    """
 
     key = ""
+    error_model: Any = None
 
     def __init__(self, spec: Any, t0_ns: int, warn: Log) -> None:
         self.spec = spec
@@ -197,7 +202,9 @@ class _Channel:
         self.first_epoch = -(-t0_ns // self.period_ns)  # ceil(t0 / P)
         self.last_epoch = self.first_epoch - 1
         self.warn = warn
-        self.model: Any = None
+        self.errors = spec.errors()
+        self.model = self.error_model(self.errors, self.period_s, spec.seed)
+        self.lever = np.array(getattr(spec, "lever_arm_m", (0.0, 0.0, 0.0)), dtype=np.float64)
 
     def feed(self, truth: TruthRows) -> list[AidingOutput]:
         k = truth.stamps_ns // self.period_ns
@@ -248,16 +255,14 @@ def _merge(parts: list[list[AidingOutput]]) -> list[AidingOutput]:
 
 class _Gnss(_Channel):
     key = "gnss"
+    error_model = GnssErrorModel
 
     def __init__(self, spec: GnssSpec, t0_ns: int, warn: Log) -> None:
         super().__init__(spec, t0_ns, warn)
-        errors = spec.errors()
-        self.model = GnssErrorModel(errors, self.period_s, spec.seed)
-        self.lever = np.array(spec.lever_arm_m, dtype=np.float64)
         self.latency_ns = spec.latency_ns
         self.outages = spec.outage_windows_ns(t0_ns)
-        pos = errors.position_variance
-        vel = errors.velocity_variance
+        pos = self.errors.position_variance
+        vel = self.errors.velocity_variance
         self.pos_cov = np.diag([pos[1], pos[0], pos[2]]).reshape(9)  # ENU
         # Errors off: the fix is the antenna truth to round-off and no variance describes it;
         # UNKNOWN (as the ideal streams' fixes) rather than an all-zero "known" covariance.
@@ -325,13 +330,7 @@ class _Gnss(_Channel):
 
 class _Baro(_Channel):
     key = "barometer"
-
-    def __init__(self, spec: BarometerSpec, t0_ns: int, warn: Log) -> None:
-        super().__init__(spec, t0_ns, warn)
-        errors = spec.errors()
-        self.model = BaroErrorModel(errors, self.period_s, spec.seed)
-        self.lever = np.array(spec.lever_arm_m, dtype=np.float64)
-        self.variance = errors.variance
+    error_model = BaroErrorModel
 
     def measure(self, truth: TruthRows) -> list[AidingOutput]:
         r_s, _ = antenna_state(truth.r_e, truth.v_e, truth.c_b_e, truth.omega_eb_b, self.lever)
@@ -342,21 +341,20 @@ class _Baro(_Channel):
             stamps_ns=truth.stamps_ns,
             frame_id=self.spec.frame_id or "baro",
             fluid_pressure=pressure,
-            variance=np.full(n, self.variance),
+            variance=np.full(n, self.errors.variance),
         )
         return [AidingOutput(AIDING_TOPICS["baro"], fields, truth.stamps_ns)]
 
 
 class _Mag(_Channel):
     key = "magnetometer"
+    error_model = MagnetometerErrorModel
 
     def __init__(self, spec: MagnetometerSpec, t0_ns: int, frame_id: str, warn: Log) -> None:
         super().__init__(spec, t0_ns, warn)
-        errors = spec.errors()
-        self.model = MagnetometerErrorModel(errors, self.period_s, spec.seed)
         self.frame_id = spec.frame_id or frame_id
         self.g, self.h = igrf_coefficients(spec.year(t0_ns))
-        self.cov = np.diag(errors.variance).reshape(9)  # diagonal: the same in FLU
+        self.cov = np.diag(self.errors.variance).reshape(9)  # diagonal: the same in FLU
 
     def model_field_body(self, truth: TruthRows) -> np.ndarray:
         """Model field (T) in body FRD at the IMU: ``C_E^B C_N^E B^N``."""
@@ -379,14 +377,12 @@ class _Mag(_Channel):
 
 class _Wheel(_Channel):
     key = "wheel_odometer"
+    error_model = OdometerErrorModel
 
     def __init__(self, spec: WheelOdometerSpec, t0_ns: int, warn: Log) -> None:
         super().__init__(spec, t0_ns, warn)
-        errors = spec.errors()
-        self.model = OdometerErrorModel(errors, self.period_s, spec.seed)
-        self.lever = np.array(spec.lever_arm_m, dtype=np.float64)
         nhc = spec.nhc_sigma_mps**2
-        diag = [errors.variance(self.period_s), nhc, nhc] + [NOT_MEASURED_VARIANCE] * 3
+        diag = [self.errors.variance(self.period_s), nhc, nhc] + [NOT_MEASURED_VARIANCE] * 3
         self.cov = np.diag(diag).reshape(36)
 
     def measure(self, truth: TruthRows) -> list[AidingOutput]:

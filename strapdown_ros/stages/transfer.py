@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from strapdown_ros.bag import cdr
-from strapdown_ros.bag.batches import Batch
+from strapdown_ros.bag.batches import Batch, header_stamps_ns, subset
 from strapdown_ros.config import Scenario
 from strapdown_ros.config.base import required_section
 from strapdown_ros.config.transfer import TransferAlignmentSpec
@@ -251,22 +251,16 @@ class TransferStage:
         """The messages of an Odometry batch the filter uses, by their header stamps (read
         from the CDR bytes, as the aided stage does): master cycles around the epochs, truth
         at the epochs."""
-        head = b"".join(bytes(p[4:12]) for p in b.payloads)
-        if len(head) != 8 * len(b.payloads):
+        t = header_stamps_ns(b)
+        if t is None:
             return b
-        raw = np.frombuffer(head, dtype=np.dtype([("sec", "<i4"), ("ns", "<u4")]))
-        t = raw["sec"].astype(np.int64) * 1_000_000_000 + raw["ns"].astype(np.int64)
         m = (t - self.t0) // self.T
         if master:
             j = (m + self.L) % self.P
             need = (m <= 2) | (j == 0) | (j == 1) | (j == self.P - 1)
         else:
             need = m % self.P == 0
-        keep = np.flatnonzero(need)
-        if len(keep) == len(b.payloads):
-            return b
-        return Batch(b.topic, b.msgtype, np.asarray(b.stamps_ns)[keep],
-                     [b.payloads[i] for i in keep])  # fmt: skip
+        return subset(b, need)
 
     # -- processing ------------------------------------------------------------------------------
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from strapdown_ros.core.aided._jit import jit
 from strapdown_ros.core.aiding import baro as _baro
+from strapdown_ros.core.aiding.magnetometer import longitude_multiples
 from strapdown_ros.core.earth import A_WGS84, B_WGS84, E2_WGS84, EP2_WGS84
 from strapdown_ros.core.navigation._kernels import _gravitation
 
@@ -112,6 +113,9 @@ def icao_pressure1(h):
     return p, -_G0 * p / (_R_AIR * t) * dh
 
 
+_longitude_multiples = jit(longitude_multiples)
+
+
 @jit
 def igrf_ned1(x, y, z, lat, g, h, a1, a2, diag, radius):
     """Main field (nT) in NED at ECEF ``(x, y, z)`` with geodetic latitude ``lat``.
@@ -128,12 +132,7 @@ def igrf_ned1(x, y, z, lat, g, h, a1, a2, diag, radius):
     ratio = radius / r
     cm = np.empty(nmax + 1)
     sm = np.empty(nmax + 1)
-    cm[0], sm[0] = 1.0, 0.0
-    if nmax >= 1:
-        cm[1], sm[1] = math.cos(lon), math.sin(lon)
-    for m in range(2, nmax + 1):
-        cm[m] = cm[m - 1] * cm[1] - sm[m - 1] * sm[1]
-        sm[m] = sm[m - 1] * cm[1] + cm[m - 1] * sm[1]
+    _longitude_multiples(math.cos(lon), math.sin(lon), cm, sm)
     pnm = np.zeros((nmax + 1, nmax + 1))
     dnm = np.zeros((nmax + 1, nmax + 1))
     pnm[0, 0] = 1.0

@@ -7,9 +7,10 @@ functions then run as plain Python (correct, slow) and the core still imports.
 its own file only (modification time and size), but a compiled function contains the code of the
 compiled functions it calls and the module constants it reads — here from several modules of
 this package and from ``core/navigation/_kernels.py`` (the exact kernel), ``core/series.py``,
-``core/earth.py`` and ``core/aiding/baro.py``. An edit of one of those would leave a stale loop
-in the cache. So the cache stamp of every function decorated here also holds the stamps of all
-those files (:data:`DEPENDENCIES`): an edit of any of them recompiles.
+``core/earth.py``, ``core/aiding/baro.py`` and ``core/aiding/magnetometer.py``. An edit of one
+of those would leave a stale loop in the cache. So the cache stamp of every function decorated
+here also holds the stamps of all those files (:data:`DEPENDENCIES`): an edit of any of them
+recompiles.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ _CORE = Path(__file__).resolve().parents[1]
 #: The source files whose code or constants the compiled functions of this package contain.
 DEPENDENCIES = tuple(sorted(
     [*(_CORE / "aided").glob("*.py"), _CORE / "navigation" / "_kernels.py", _CORE / "series.py",
-     _CORE / "earth.py", _CORE / "aiding" / "baro.py"]
+     _CORE / "earth.py", _CORE / "aiding" / "baro.py", _CORE / "aiding" / "magnetometer.py"]
 ))  # fmt: skip
 
 

@@ -38,7 +38,7 @@ from strapdown_ros.core.aided._fields import (
     igrf_ned1,
 )
 from strapdown_ros.core.aided._jit import jit
-from strapdown_ros.core.aided._small import matmul3, matvec3, matvec3_t, rot_z, skew
+from strapdown_ros.core.aided._small import cross, matmul3, matvec3, matvec3_t, rot_z, skew
 from strapdown_ros.core.aided.layout import (
     B_BARO_BIAS,
     B_BARO_DRIFT,
@@ -145,15 +145,9 @@ def gnss_position_model(r, lo, c, t, est, off, lever, r_meas, lat_m, lon_m):
     c_e = _ecef_rot(t)
     cen = ecef_to_ned1(lat_m, lon_m)
     cl = matvec3(c, lever)
-    tail = np.empty(3)
-    for i in range(3):
-        tail[i] = lo[i] + cl[i]
     ra = matvec3(c_e, r)
-    ta = matvec3(c_e, tail)
-    d = np.empty(3)
-    for i in range(3):
-        d[i] = (r_meas[i] - ra[i]) - ta[i]
-    nu = matvec3(cen, d)
+    ta = matvec3(c_e, lo[:3] + cl)
+    nu = matvec3(cen, (r_meas - ra) - ta)
     m = matmul3(cen, c_e)
     h = np.zeros((3, n))
     _put3(h, 0, 0, m, 1.0)
@@ -177,6 +171,17 @@ def _frame_rotation(lat, alt):
 
 
 @jit
+def _subtract_product(h, a, jw):
+    """``H[:3] -= A J`` in place for ``a`` (3, 3), ``jw`` (3, n) (each sum over k ascending)."""
+    for i in range(3):
+        for j in range(jw.shape[1]):
+            s = 0.0
+            for k in range(3):
+                s += a[i, k] * jw[k, j]
+            h[i, j] -= s
+
+
+@jit
 def gnss_velocity_model(r, v, c, t, est, off, lever, da_raw, period, v_meas_ned):
     """GNSS antenna velocity relative to the Earth: ``(ν, H)`` (m/s).
 
@@ -186,27 +191,15 @@ def gnss_velocity_model(r, v, c, t, est, off, lever, da_raw, period, v_meas_ned)
     n = est.shape[0]
     c_e = _ecef_rot(t)
     w, jw = body_rate(c, da_raw, period, est, off)
-    wxl = np.empty(3)
-    wxl[0] = w[1] * lever[2] - w[2] * lever[1]
-    wxl[1] = w[2] * lever[0] - w[0] * lever[2]
-    wxl[2] = w[0] * lever[1] - w[1] * lever[0]
-    lev = matvec3(c, wxl)
-    oxr = _omega_cross(r)
-    va0 = np.empty(3)
-    for i in range(3):
-        va0[i] = (v[i] - oxr[i]) + lev[i]
+    lev = matvec3(c, cross(w, lever))
+    va0 = (v - _omega_cross(r)) + lev
     cl = matvec3(c, lever)
-    ra0 = np.empty(3)
-    for i in range(3):
-        ra0[i] = r[i] + cl[i]
-    ra = matvec3(c_e, ra0)
+    ra = matvec3(c_e, r + cl)
     lat, lon, alt = ecef_to_geodetic1(ra[0], ra[1], ra[2])
     cen = ecef_to_ned1(lat, lon)
     m = matmul3(cen, c_e)
     vn = matvec3(m, va0)
-    nu = np.empty(3)
-    for i in range(3):
-        nu[i] = v_meas_ned[i] - vn[i]
+    nu = v_meas_ned - vn
     h = np.zeros((3, n))
     wie = np.zeros(3)
     wie[2] = OMEGA_IE
@@ -215,13 +208,7 @@ def gnss_velocity_model(r, v, c, t, est, off, lever, da_raw, period, v_meas_ned)
     _put3(h, 0, 3, m, 1.0)
     _put3(h, 0, 6, matmul3(m, skew(lev)), -1.0)  # -[(C(ω×l))×] φ
     # lever term through the rate: -C [l×] δω_eb
-    a = matmul3(m, matmul3(c, skew(lever)))
-    for i in range(3):
-        for j in range(n):
-            s = 0.0
-            for k in range(3):
-                s += a[i, k] * jw[k, j]
-            h[i, j] -= s
+    _subtract_product(h, matmul3(m, matmul3(c, skew(lever))), jw)
     # the local level of the antenna turns with its position: δ(C_E^N) v = [v^N×] D δr^N
     g = matmul3(skew(vn), _frame_rotation(lat, alt))
     gm_ = matmul3(g, m)
@@ -237,10 +224,7 @@ def baro_model(r, lo, c, t, est, off, lever, p_meas):
     n = est.shape[0]
     c_e = _ecef_rot(t)
     cl = matvec3(c, lever)
-    rs0 = np.empty(3)
-    for i in range(3):
-        rs0[i] = r[i] + (lo[i] + cl[i])
-    rs = matvec3(c_e, rs0)
+    rs = matvec3(c_e, r + (lo[:3] + cl))
     lat, lon, alt = ecef_to_geodetic1(rs[0], rs[1], rs[2])
     p, dp = icao_pressure1(alt)
     up = np.empty(3)
@@ -253,9 +237,9 @@ def baro_model(r, lo, c, t, est, off, lever, p_meas):
     for j in range(3):
         h[0, j] = dp * g[j]
     # δ(C l) = -[(C l)×] φ: row gᵀ (-[cl×]) = (cl × g)ᵀ
-    h[0, 6] = dp * (cl[1] * g[2] - cl[2] * g[1])
-    h[0, 7] = dp * (cl[2] * g[0] - cl[0] * g[2])
-    h[0, 8] = dp * (cl[0] * g[1] - cl[1] * g[0])
+    clg = cross(cl, g)
+    for j in range(3):
+        h[0, 6 + j] = dp * clg[j]
     for b in (B_BARO_BIAS, B_BARO_DRIFT):
         k = off[b]
         if k >= 0:
@@ -277,10 +261,7 @@ def mag_model(r, c, t, est, off, m_meas, g, hc, a1, a2, diag, radius):
     cen = ecef_to_ned1(lat, lon)
     b_e = matvec3_t(cen, b_ned)
     b0 = matvec3_t(c_e, b_e)
-    pred = matvec3_t(c, b0)
-    nu = np.empty(3)
-    for i in range(3):
-        nu[i] = m_meas[i] - pred[i]
+    nu = m_meas - matvec3_t(c, b0)
     h = np.zeros((3, n))
     _put3(h, 0, 6, matmul3(c.T.copy(), skew(b0)), 1.0)
     _measurement_bias(nu, h, est, off[B_MAG])
@@ -296,15 +277,8 @@ def wheel_model(r, v, c, est, off, lever, da_raw, period, z_meas, mask):
     """
     n = est.shape[0]
     w, jw = body_rate(c, da_raw, period, est, off)
-    oxr = _omega_cross(r)
-    u = np.empty(3)
-    for i in range(3):
-        u[i] = v[i] - oxr[i]
-    vb = matvec3_t(c, u)
-    vc = np.empty(3)
-    vc[0] = vb[0] + (w[1] * lever[2] - w[2] * lever[1])
-    vc[1] = vb[1] + (w[2] * lever[0] - w[0] * lever[2])
-    vc[2] = vb[2] + (w[0] * lever[1] - w[1] * lever[0])
+    u = v - _omega_cross(r)
+    vc = matvec3_t(c, u) + cross(w, lever)
     hf = np.zeros((3, n))
     ct = c.T.copy()
     wie = np.zeros(3)
@@ -312,13 +286,7 @@ def wheel_model(r, v, c, est, off, lever, da_raw, period, z_meas, mask):
     _put3(hf, 0, 0, matmul3(ct, skew(wie)), -1.0)
     _put3(hf, 0, 3, ct, 1.0)
     _put3(hf, 0, 6, matmul3(ct, skew(u)), 1.0)
-    sl = skew(lever)
-    for i in range(3):
-        for j in range(n):
-            s = 0.0
-            for k in range(3):
-                s += sl[i, k] * jw[k, j]
-            hf[i, j] -= s
+    _subtract_product(hf, skew(lever), jw)
     pred = vc.copy()
     ks = off[B_WHEEL_SF]
     if ks >= 0:

@@ -73,6 +73,22 @@ def _cholesky_solve_columns(low, b):
 
 
 @jit
+def _h_times(h, x):
+    """``H X`` (m, k) of ``h`` (m, n) and ``x`` (n, k), the zero entries of H skipped."""
+    m, n, k = h.shape[0], h.shape[1], x.shape[1]
+    out = np.empty((m, k))
+    for a in range(m):
+        for c in range(k):
+            s = 0.0
+            for j in range(n):
+                hj = h[a, j]
+                if hj != 0.0:
+                    s += hj * x[j, c]
+            out[a, c] = s
+    return out
+
+
+@jit
 def joseph_update(p, nu, h, rm, gate):
     """Gate and update: returns ``(dx, nis, accepted)``; P updated in place when accepted.
 
@@ -80,24 +96,8 @@ def joseph_update(p, nu, h, rm, gate):
     threshold (``inf``: no gate). A non-positive S rejects the measurement (NIS = inf).
     """
     n, m = p.shape[0], nu.shape[0]
-    ph = np.zeros((n, m))
-    for i in range(n):
-        for a in range(m):
-            s = 0.0
-            for j in range(n):
-                hj = h[a, j]
-                if hj != 0.0:
-                    s += p[i, j] * hj
-            ph[i, a] = s
-    hph = np.empty((m, m))
-    for a in range(m):
-        for b in range(m):
-            s = 0.0
-            for j in range(n):
-                hj = h[a, j]
-                if hj != 0.0:
-                    s += hj * ph[j, b]
-            hph[a, b] = s
+    ph = _h_times(h, p.T).T  # P Hᵀ (n, m)
+    hph = _h_times(h, ph)
     sm = np.empty((m, m))
     for a in range(m):
         for b in range(m):

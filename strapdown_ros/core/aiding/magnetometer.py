@@ -57,6 +57,20 @@ def _recursion_factors(nmax: int) -> tuple[F64, F64, F64]:
     return a1, a2, diag
 
 
+def longitude_multiples(cos_lon: object, sin_lon: object, cm: F64, sm: F64) -> None:
+    """``cos mλ``, ``sin mλ`` into ``cm``, ``sm`` (m = 0..N on their first axis), in place.
+
+    The angle-addition recursion from ``cos λ``, ``sin λ``: for arrays of points here, for one
+    point in the compiled filter (:mod:`strapdown_ros.core.aided._fields`, the same arithmetic).
+    """
+    cm[0], sm[0] = 1.0, 0.0
+    if cm.shape[0] > 1:
+        cm[1], sm[1] = cos_lon, sin_lon
+    for m in range(2, cm.shape[0]):
+        cm[m] = cm[m - 1] * cm[1] - sm[m - 1] * sm[1]
+        sm[m] = sm[m - 1] * cm[1] + cm[m - 1] * sm[1]
+
+
 def igrf_field_ned(
     r_e: ArrayLike, lat: ArrayLike, g: ArrayLike, h: ArrayLike,
     radius_m: float = IGRF_REFERENCE_RADIUS_M,
@@ -97,15 +111,9 @@ def igrf_field_ned(
     lon = np.arctan2(y, x)
     ratio = radius_m / r
     npts = r.shape[0]
-    # cos mλ, sin mλ by the angle-addition recursion.
     cm = np.empty((nmax + 1, npts))
     sm = np.empty((nmax + 1, npts))
-    cm[0], sm[0] = 1.0, 0.0
-    if nmax >= 1:
-        cm[1], sm[1] = np.cos(lon), np.sin(lon)
-    for m in range(2, nmax + 1):
-        cm[m] = cm[m - 1] * cm[1] - sm[m - 1] * sm[1]
-        sm[m] = sm[m - 1] * cm[1] + cm[m - 1] * sm[1]
+    longitude_multiples(np.cos(lon), np.sin(lon), cm, sm)
     # P_n^m and dP_n^m/dθ for m = 0..n, one degree at a time (vectorized over m and points).
     pnm = np.zeros((nmax + 1, nmax + 1, npts))
     dnm = np.zeros((nmax + 1, nmax + 1, npts))
