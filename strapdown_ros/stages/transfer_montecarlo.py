@@ -11,7 +11,7 @@ master errors and the mounting error draw (``mounting_error_deg: null``) from
 Command line (docs/transfer_alignment.md)::
 
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --runs 50 [--straight] [--save DIR]
-    python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --summarize DIR
+    python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --summarize DIR [DIR ...]
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --bending 0 1 2 5 10
 """
 
@@ -273,12 +273,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="bending amplitudes (mm): the bending table instead of a campaign")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--save", type=Path, default=None, help="write each run's series here")
-    ap.add_argument("--summarize", type=Path, default=None,
-                    help="only summarize the runs saved in this directory")
+    ap.add_argument("--summarize", type=Path, nargs="+", default=None, metavar="DIR",
+                    help="only summarize the runs saved in these directories (pooled)")
     args = ap.parse_args(argv)
     if args.summarize is not None:
-        results = load_results(args.summarize)
-        print(f"{args.summarize}: {len(results)} runs")
+        results = [r for d in args.summarize for r in load_results(d)]
+        if not results:
+            ap.error(f"--summarize: no run_*.npz in {', '.join(map(str, args.summarize))}")
+        print(f"{', '.join(map(str, args.summarize))}: {len(results)} runs")
         print("\n".join(summary(results)))
         return 0
     doc = yaml.safe_load(args.scenario.read_text())
