@@ -61,12 +61,14 @@ __all__ = [
     "ComponentCheck",
     "Ensemble",
     "Prediction",
+    "ScenarioModel",
     "campaign_scenario",
     "compare_ensemble",
     "predict_scenario",
     "campaign_seeds",
     "read_ensemble",
     "realized_initial_covariance",
+    "scenario_model",
     "steps_from_bag",
 ]
 
@@ -138,6 +140,46 @@ def _to_components(nav: F64, sign: float = -1.0) -> F64:
     return out
 
 
+@dataclass(frozen=True)
+class ScenarioModel:
+    """What the covariance model needs of a scenario's navigator: the first step's stamp
+    ``start_ns``, the propagation ``steps``, the navigator IMU's error ``params``, its gravity
+    model and vertical damping (None: undamped)."""
+
+    start_ns: int
+    steps: PropagationSteps
+    params: ImuErrorParameters
+    gravity_model: str
+    damping: VerticalDampingGains | None
+
+
+def scenario_model(scenario: Scenario, bag: str | Path, steps_per_output: int = 1) -> ScenarioModel:
+    """The scenario's navigator as the covariance model carries it (:func:`predict_scenario`).
+
+    Refuses what the model does not carry: no navigator or no ``imu_errors`` on its input,
+    non-zero initial errors, Table 1's unstable damping signs.
+    """
+    nav = navigator_spec(scenario)
+    if nav is None or not scenario.imu_errors:
+        raise ValueError("the scenario needs a navigator and an imu_errors section")
+    spec = scenario.imu_errors_of(nav.imu_topic)
+    if spec is None:
+        outputs = ", ".join(out for _, out in scenario.measured_imu_topics())
+        raise ValueError(f"navigator.imu_topic: {nav.imu_topic} is not a measured IMU ({outputs})")
+    ideal, measured = spec.topics(scenario.recording.topics)
+    if nav.initial_errors is not None and any(
+        np.any(np.asarray(v) != 0) for v in nav.initial_errors.model_dump().values()
+    ):
+        raise ValueError("navigator.initial_errors: the prediction starts from zero errors")
+    damping = None
+    if nav.vertical_damping is not None:
+        if nav.vertical_damping.paper_signs:
+            raise ValueError("navigator.vertical_damping.paper_signs: the loop is unstable")
+        damping = VerticalDampingGains(nav.vertical_damping.k1, nav.vertical_damping.k2)
+    start, steps = steps_from_bag(bag, ideal, str(nav.truth_topic), nav.n * steps_per_output)
+    return ScenarioModel(start, steps, spec.parameters(), str(nav.gravity_model), damping)
+
+
 def predict_scenario(
     scenario: Scenario,
     bag: str | Path,
@@ -154,29 +196,13 @@ def predict_scenario(
     :func:`~strapdown_ros.core.covariance.initial_moments`; a campaign's drawn constants:
     :func:`realized_initial_covariance`).
     """
-    nav = navigator_spec(scenario)
-    if nav is None or not scenario.imu_errors:
-        raise ValueError("the scenario needs a navigator and an imu_errors section")
-    spec = scenario.imu_errors_of(nav.imu_topic)
-    if spec is None:
-        outputs = ", ".join(out for _, out in scenario.measured_imu_topics())
-        raise ValueError(f"navigator.imu_topic: {nav.imu_topic} is not a measured IMU ({outputs})")
-    ideal, measured = spec.topics(scenario.recording.topics)
-    if nav.initial_errors is not None and any(
-        np.any(np.asarray(v) != 0) for v in nav.initial_errors.model_dump().values()
-    ):
-        raise ValueError("navigator.initial_errors: the prediction starts from zero errors")
-    params = spec.parameters() if params is None else params
-    damping = None
-    if nav.vertical_damping is not None:
-        if nav.vertical_damping.paper_signs:
-            raise ValueError("navigator.vertical_damping.paper_signs: the loop is unstable")
-        damping = VerticalDampingGains(nav.vertical_damping.k1, nav.vertical_damping.k2)
-    start, steps = steps_from_bag(bag, ideal, str(nav.truth_topic), nav.n * steps_per_output)
-    result = propagate_covariance(steps, params, cov0=cov0, gravity_model=str(nav.gravity_model),
-                                  damping=damping)  # fmt: skip
+    model = scenario_model(scenario, bag, steps_per_output)
+    params = model.params if params is None else params
+    steps = model.steps
+    result = propagate_covariance(steps, params, cov0=cov0, gravity_model=model.gravity_model,
+                                  damping=model.damping)  # fmt: skip
     mean, sigma = result.navigation_moments()
-    stamps = start + np.round(steps.t * 1e9).astype(np.int64)
+    stamps = model.start_ns + np.round(steps.t * 1e9).astype(np.int64)
     return Prediction(stamps, _to_components(mean), _to_components(sigma, 1.0), params)
 
 
