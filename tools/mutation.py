@@ -55,7 +55,11 @@ TESTS: dict[str, list[str]] = {
         "test/test_imu_errors_mutants.py",
     ],
     "core/frames.py": ["test/test_frames.py", "test/test_tf.py", "test/test_frames_mutants.py"],
-    "core/allan.py": ["test/test_imu_errors.py", "test/test_allan_closed_forms.py"],
+    "core/allan.py": [
+        "test/test_imu_errors.py",
+        "test/test_allan_closed_forms.py",
+        "test/test_allan_mutants.py",
+    ],
     "core/aiding/gnss.py": [
         "test/test_aiding_models.py",
         "test/test_aided_models.py",
