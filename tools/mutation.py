@@ -55,9 +55,23 @@ TESTS: dict[str, list[str]] = {
         "test/test_imu_errors_mutants.py",
     ],
     "core/frames.py": ["test/test_frames.py", "test/test_tf.py", "test/test_frames_mutants.py"],
-    "core/allan.py": ["test/test_imu_errors.py", "test/test_allan_closed_forms.py"],
-    "core/aiding/gnss.py": ["test/test_aiding_models.py", "test/test_aided_models.py"],
-    "core/aiding/common.py": ["test/test_aiding_models.py", "test/test_aided_models.py"],
+    "core/allan.py": [
+        "test/test_imu_errors.py",
+        "test/test_allan_closed_forms.py",
+        "test/test_allan_mutants.py",
+    ],
+    "core/aiding/gnss.py": [
+        "test/test_aiding_models.py",
+        "test/test_aided_models.py",
+        "test/test_gnss_mutants.py",
+    ],
+    "core/aiding/common.py": [
+        "test/test_aiding_models.py",
+        "test/test_aided_models.py",
+        "test/test_aiding_common_mutants.py",
+        "test/test_gnss_mutants.py",
+    ],
+    "stages/tf.py": ["test/test_tf.py", "test/test_frames.py", "test/test_tf_mutants.py"],
     "messages/imu.py": [
         "test/test_messages.py",
         "test/test_imu_orientation.py",
