@@ -14,7 +14,7 @@ import sys
 import time
 
 from imu_pattern import make_imu
-from ros_child import reliable_qos, ros_node, wait_acked, wait_matched
+from ros_child import exit_with, reliable_qos, ros_node, wait_acked, wait_matched
 
 
 def main() -> int:
@@ -47,4 +47,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_with(main)

@@ -8,11 +8,10 @@ within a short grace period).  Exit 0 on success, 1 on a wrong message, 3 on tim
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 
 from imu_pattern import differences, expected_fields, fields_of
-from ros_child import reliable_qos, ros_node, wait_matched
+from ros_child import exit_with, reliable_qos, ros_node, wait_matched
 
 
 def main() -> int:
@@ -63,4 +62,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_with(main)

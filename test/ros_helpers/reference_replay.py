@@ -26,10 +26,9 @@ from __future__ import annotations
 
 import argparse
 import pickle
-import sys
 import time
 
-from ros_child import message_type, reliable_qos, ros_node, wait_acked, wait_matched
+from ros_child import exit_with, message_type, reliable_qos, ros_node, wait_acked, wait_matched
 
 
 def _with_nan(msgtype: str, payload: bytes, field: str) -> bytes:
@@ -177,4 +176,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_with(main)

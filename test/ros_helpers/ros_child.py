@@ -8,8 +8,11 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
+import sys
+import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 
@@ -31,9 +34,19 @@ def message_type(msgtype: str) -> type:
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
+TEARDOWN_S = 5.0
+
+
 @contextlib.contextmanager
 def ros_node(name: str) -> Iterator[Any]:
-    """rclpy initialized and a node ``name``; both shut down at the end."""
+    """rclpy initialized and a node ``name``; both shut down at the end, for at most
+    ``TEARDOWN_S`` s.
+
+    The helper's result is printed before the teardown; a DDS teardown that hangs (seen in CI
+    on a loaded machine after every message was acknowledged) must not fail the test, so it
+    runs in a daemon thread and is abandoned after ``TEARDOWN_S``. Run the helper with
+    :func:`exit_with` so that the abandoned thread cannot hold the process either.
+    """
     import rclpy
 
     rclpy.init()
@@ -41,8 +54,23 @@ def ros_node(name: str) -> Iterator[Any]:
     try:
         yield node
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+
+        def teardown() -> None:
+            node.destroy_node()
+            rclpy.try_shutdown()
+
+        thread = threading.Thread(target=teardown, daemon=True)
+        thread.start()
+        thread.join(timeout=TEARDOWN_S)
+
+
+def exit_with(main: Callable[[], int]) -> None:
+    """Run ``main`` and leave the process with its code at once (``os._exit``: no wait for a
+    DDS thread that did not shut down)."""
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 def wait_matched(
