@@ -82,7 +82,8 @@ def _proc_cpu(root: int) -> dict[str, float]:
 
 
 def _one_run(
-    python: str, rate: float, duration: float, gen: Path, live: Path, flow: bool
+    python: str, rate: float, duration: float, gen: Path, live: Path, flow: bool,
+    period: float | None = None,
 ) -> dict:
     """One ``strapdown-sim run`` of the tree of ``python``; the lag lines relayed as they come."""
     load0 = os.getloadavg()[0]
@@ -90,6 +91,8 @@ def _one_run(
            "--duration", str(duration), "--set", f"rate_hz={rate:g}", "--force"]  # fmt: skip
     if flow:
         cmd.append("--unpaced")
+    if period is not None:
+        cmd += ["--publish-period", f"{period:g}"]
     t0 = time.monotonic()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
@@ -168,15 +171,24 @@ def main(argv: list[str] | None = None) -> float:
                         help="an earlier source tree (with its .venv), run alternately")
     parser.add_argument("--flow", action="store_true",
                         help="flow-controlled unpaced runs (lossless: CPU per message only)")
+    parser.add_argument("--publish-period", type=float, default=None, metavar="S",
+                        help="the source's publish groups (run --publish-period; default: "
+                        "run's own default)")
+    parser.add_argument("--against-period", type=float, default=None, metavar="S",
+                        help="also run this tree with --publish-period S, alternately")
     args = parser.parse_args(argv)
-    trees = [("this", sys.executable)]
+    trees = [("this", sys.executable, args.publish_period)]
     if args.base is not None:
-        trees.append(("base", str(args.base.resolve() / ".venv" / "bin" / "python")))
+        trees.append(("base", str(args.base.resolve() / ".venv" / "bin" / "python"), None))
+    if args.against_period is not None:
+        trees.append((f"p{args.against_period * 1e3:g}ms", sys.executable, args.against_period))
     best = 0.0
     loads: list[float] = []
     mode = "unpaced, flow control" if args.flow else "rate_factor 1"
     print(f"scenario: {SCENARIO.name}, {args.duration:g} s of data per run, {mode}, "
-          f"{args.repeats} runs per rate" + (f", base tree {args.base}" if args.base else ""))
+          f"{args.repeats} runs per rate" + (f", base tree {args.base}" if args.base else "")
+          + "".join(f", {t}: publish period {'default' if p is None else f'{p:g} s'}"
+                    for t, _, p in trees))  # fmt: skip
     print(f"start: {_uptime()}")
     head = "  ".join(f"{n.split('_')[0][:4]:>5}" for n in NODES)
     print(f"{'rate Hz':>8} {'run':>8} {'msgs':>8} {'lost':>7} {'same':>5} {'wall s':>6} "
@@ -199,10 +211,10 @@ def main(argv: list[str] | None = None) -> float:
                     pdir = args.profile / f"{rate:g}"
                     pdir.mkdir(parents=True, exist_ok=True)
                     os.environ[PROFILE_ENV] = str(pdir)
-                for tag, python in trees if not profile else trees[:1]:
+                for tag, python, period in trees if not profile else trees[:1]:
                     try:
                         r = _one_run(python, rate, args.duration, gen, Path(tmp) / f"run{k}",
-                                     args.flow)  # fmt: skip
+                                     args.flow, period)  # fmt: skip
                     except RuntimeError as exc:
                         print(f"{rate:>8g} {k + 1:>3} {tag}  pipeline failed: {exc}")
                         ok_all = False

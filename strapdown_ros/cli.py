@@ -154,6 +154,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="auto (default): on with --unpaced or --rate-factor > 1, off in real time",
     )  # fmt: skip
     run.add_argument(
+        "--publish-period", type=float, default=0.0, metavar="S",
+        help="the trajectory node publishes in groups of S s of data (never early, at most S "
+        "late; fewer wake-ups per message); default 0: every message at its own time",
+    )  # fmt: skip
+    run.add_argument(
         "--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: private, from pid)"
     )
     run.add_argument("--timeout", type=float, default=None, metavar="S", help="give up after S s")
@@ -418,6 +423,7 @@ def _run(args: argparse.Namespace) -> int:
         rate_factor=0.0 if args.unpaced else args.rate_factor,
         domain_id=args.domain_id, timeout_s=args.timeout,
         flow_control={"auto": None, "on": True, "off": False}[args.flow_control],
+        publish_period_s=args.publish_period,
     ))  # fmt: skip
 
 

@@ -70,3 +70,31 @@ def test_pacer_due_times_and_as_fast_as_possible() -> None:
     fast = Pacer(0.0, t0_ns=0, start=5.0)
     assert fast.due(10**12) == 5.0
     fast.wait(10**12, spin=lambda t: pytest.fail("must not wait"))
+
+
+def test_pacer_groups_release_at_the_group_end_never_early() -> None:
+    """Groups of 10 ms of data at rate 2: stamp t is released at the due time of
+    t0 + ceil((t - t0) / 10 ms) * 10 ms, i.e. (that - t0) / 2 after the start."""
+    ms = 1_000_000
+    p = Pacer(2.0, t0_ns=7 * ms, start=100.0, group_ns=10 * ms)
+    want = {7 * ms: 100.0, 8 * ms: 100.005, 17 * ms: 100.005, 18 * ms: 100.010}
+    for stamp, release in want.items():
+        assert p.release(stamp) == pytest.approx(release, abs=1e-12)
+        assert p.release(stamp) >= p.due(stamp)
+    assert Pacer(2.0, t0_ns=7 * ms, start=100.0).release(8 * ms) == p.due(8 * ms)
+    with pytest.raises(ValueError, match="group_ns"):
+        Pacer(1.0, t0_ns=0, group_ns=-1)
+
+
+def test_pacer_groups_wake_once_per_group() -> None:
+    """40 stamps 1 ms apart in groups of 10 ms, real time: no message goes before its due time
+    and the waits end at 5 distinct release times (t0 and 4 group ends)."""
+    ms = 1_000_000
+    p = Pacer(1.0, t0_ns=0, group_ns=10 * ms)
+    released = []
+    for stamp in range(0, 40 * ms, ms):
+        p.wait(stamp, spin=lambda t: None)
+        now = time.monotonic()
+        assert now >= p.due(stamp)
+        released.append(p.release(stamp))
+    assert len(set(released)) == 5

@@ -118,6 +118,11 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_scenario(),
         ("time_source", "sim", "sim | wall"),
         ("rate_factor", 1.0, "speed-up over real time; <= 0: as fast as possible"),
+        (
+            "publish_period_s", 0.0,
+            "publish in groups of this much data time (s): each message waits for its group's "
+            "end, never early, at most this late; 0: every message at its own time",
+        ),  # fmt: skip
         ("imu_topic", "/reference/imu", "topic (default recording.topics.reference_imu)"),
         ("odom_topic", "/reference/odom", "topic (default recording.topics.reference_odom)"),
         ("fix_topic", "/reference/fix", "topic (default recording.topics.reference_fix)"),

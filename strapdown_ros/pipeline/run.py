@@ -62,11 +62,14 @@ def run_pipeline(
     timeout_s: float | None = None,
     progress: bool = True,
     flow_control: bool | None = None,
+    publish_period_s: float = 0.0,
 ) -> PipelineResult:
     """Run the scenario live and record it into ``out``; see :mod:`strapdown_ros.pipeline`.
 
     ``rate_factor`` <= 0: unpaced. ``flow_control`` None: on when ``rate_factor`` > 1 or
     unpaced (the runs not tied to the wall clock), off for (slower than) real time.
+    ``publish_period_s`` > 0: the source publishes in groups of that much data time (the
+    trajectory node's ``publish_period_s``), never early and at most that late.
 
     Raises
     ------
@@ -101,7 +104,7 @@ def run_pipeline(
         common.append(f"duration_s:={float(duration_s)}")
     children = Children(out, domain_id, common, profile=True)
     run = _LiveRun(plan, out, storage, force, rate_factor, flow_control, children,
-                   say_to_stderr("run", progress))  # fmt: skip
+                   say_to_stderr("run", progress), publish_period_s)  # fmt: skip
     try:
         run.say(f"ROS_DOMAIN_ID={children.domain}; logs in {children.log_dir}")
         source = run.start()
@@ -127,6 +130,8 @@ class _LiveRun:
     flow_control: bool
     children: Children
     say: Callable[[str], None]
+    #: The source's ``publish_period_s`` (s of data time; 0: every message at its own time).
+    publish_period_s: float = 0.0
     #: Topic → the subscriptions it will have (the recorder's and the nodes reading it).
     subscriptions: dict[str, int] = field(default_factory=dict)
     #: The chain's nodes (source first).
@@ -181,6 +186,9 @@ class _LiveRun:
         time_source = "sim" if self.plan.scenario.recording.clock else "wall"
         pace = f"rate_factor {rate_factor:g}" if rate_factor > 0 else "unpaced"
         params = [f"rate_factor:={float(rate_factor)}", "qos_depth:=10000"]
+        if self.publish_period_s > 0:
+            pace += f", in groups of {self.publish_period_s * 1e3:g} ms"
+            params.append(f"publish_period_s:={float(self.publish_period_s)}")
         if self.flow_control:
             pace += ", flow control on " + ", ".join(flow_nodes)
             params.append(list_param("flow_nodes", flow_nodes))
