@@ -180,6 +180,15 @@ def test_an_estimate_in_another_frame_with_its_lever_arm_scores_the_same(case) -
     assert np.abs(wrong.position_ned - base.position_ned).max() > 1.0
 
 
+def _write_pose_cov(path: Path, stamps: np.ndarray, payloads: list) -> Path:
+    """A bag of PoseWithCovarianceStamped payloads on /est, one per stamp."""
+    with BagWriter(path) as w:
+        w.add_topic("/est", "geometry_msgs/msg/PoseWithCovarianceStamped")
+        for t, p in zip(stamps, payloads, strict=True):
+            w.write("/est", int(t), p)
+    return path
+
+
 def _pose_cov_messages(stamps, pos, quat, cov, frame):  # PoseWithCovarianceStamped payloads
     from rosbags.typesys import Stores, get_typestore
 
@@ -227,11 +236,7 @@ def test_nees_of_draws_from_the_declared_covariance(case) -> None:
     cov[np.arange(3), np.arange(3)] = sig_p**2
     cov[np.arange(3, 6), np.arange(3, 6)] = sig_a**2
     payloads = _pose_cov_messages(stamps, pos, quat_ros_from_dcm(c_flu_map), cov, "map")
-    path = root / "pose_cov"
-    with BagWriter(path) as w:
-        w.add_topic("/est", "geometry_msgs/msg/PoseWithCovarianceStamped")
-        for t, p in zip(stamps, payloads, strict=True):
-            w.write("/est", int(t), p)
+    path = _write_pose_cov(root / "pose_cov", stamps, payloads)
     s = score_bag(root / "bag", "/est", estimate_bag=path, scenario=scenario)
     nees = s.summary["nees"]
     assert nees["position"]["samples"] == n
@@ -246,11 +251,7 @@ def test_nees_of_draws_from_the_declared_covariance(case) -> None:
     swapped = cov.copy()
     swapped[0, 0], swapped[1, 1] = cov[1, 1], cov[0, 0]
     wrong = _pose_cov_messages(stamps, pos, quat_ros_from_dcm(c_flu_map), swapped, "map")
-    path = root / "pose_cov_swapped"
-    with BagWriter(path) as w:
-        w.add_topic("/est", "geometry_msgs/msg/PoseWithCovarianceStamped")
-        for t, p in zip(stamps, wrong, strict=True):
-            w.write("/est", int(t), p)
+    path = _write_pose_cov(root / "pose_cov_swapped", stamps, wrong)
     s = score_bag(root / "bag", "/est", estimate_bag=path, scenario=scenario)
     assert s.summary["nees"]["position"]["mean"] > 20
 
