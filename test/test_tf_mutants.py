@@ -17,8 +17,9 @@ from rosbags.typesys import Stores, get_typestore
 
 from strapdown_ros.config import load_scenario
 from strapdown_ros.generate import generate_dataset
+from strapdown_ros.messages import OdometryFields
 from strapdown_ros.plan.resolve import resolve_plan
-from strapdown_ros.stages.tf import TFStage, plan_datum
+from strapdown_ros.stages.tf import TFStage, derived_topics, plan_datum
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -85,3 +86,106 @@ def test_body_tf_at_every_truth_stamp_when_t0_is_off_the_period_grid(tmp_path: P
                         body.append(tr.header.stamp.sec * 10**9 + tr.header.stamp.nanosec)
     assert len(odom) == round(0.1 * scenario.rate_hz) + 1
     assert sorted(body) == sorted(odom)
+
+
+# -- derived_topic_plans, derived_topics, TFStage settings, observe_reference ---------------
+
+DECIMATED = ["tf.body_rate_hz=50", "tf.navigator_rate_hz=10", "recording.increments=true"]
+T0 = 1767225600 * 10**9  # default.yaml's start_time_s
+
+
+def _default(overrides: list[str]):
+    return load_scenario(SCENARIOS / "default.yaml", overrides, duration_s=1.0)
+
+
+def test_planned_tf_counts_with_body_and_navigator_rates():
+    """default.yaml, 1 s at 200 Hz (T = 5 ms), tf body 50 Hz and navigator 10 Hz, increments:
+    hand counts. /tf: truth cycles 0, 4, …, 200 (51) + variation truth cycles 0, 4, …, 196 of
+    its 199 (50) + every 2nd of the navigator's 20 outputs at 20 Hz (N = 10: 10) = 111;
+    /tf_static one message at t0; each twin the count and first/last stamps of its source,
+    link ``tf``, key ``<source key>_<suffix>``, the docs/interface.md message types, in the
+    order tf_static, tf, then by source topic."""
+    plan = resolve_plan(_default(DECIMATED))
+    up = {p.key: p for p in plan.topics.values() if p.link != "tf"}
+    assert (up["reference_odom"].count, up["variation_odom"].count) == (201, 199)
+    assert up["navigator_odom"].count == 20
+    tf = [p for p in plan.topics.values() if p.link == "tf"]
+    static, dyn = tf[0], tf[1]
+    assert (static.topic, static.msgtype, static.count, static.key) == (
+        "/tf_static", "tf2_msgs/msg/TFMessage", 1, "tf_static")  # fmt: skip
+    assert static.first_ns == static.last_ns == T0
+    assert (dyn.topic, dyn.msgtype, dyn.count, dyn.key, dyn.first_ns) == (
+        "/tf", "tf2_msgs/msg/TFMessage", 111, "tf", T0)  # fmt: skip
+    types = {"map": "nav_msgs/msg/Odometry", "dv": "geometry_msgs/msg/Vector3Stamped",
+             "dq": "geometry_msgs/msg/QuaternionStamped"}  # fmt: skip
+    want = []
+    for src in ("reference_odom", "reference_imu", "variation_odom", "variation_imu",
+                "variation_reference_odom", "variation_reference_imu",
+                "variation_imu_measured", "navigator_odom"):  # fmt: skip
+        s = up[src]
+        for suffix in ("map",) if src.endswith("odom") else ("dv", "dq"):
+            name = s.topic + ("_map" if suffix == "map" else f"_{suffix}")
+            want.append((name, types[suffix], s.count, "tf", f"{src}_{suffix}",
+                         s.first_ns, s.last_ns))  # fmt: skip
+    got = [(p.topic, p.msgtype, p.count, p.link, p.key, p.first_ns, p.last_ns) for p in tf[2:]]
+    assert got == want
+
+
+def test_derived_topics_without_map_odometry():
+    """``tf.map_odometry: false``: no ``*_map`` topic, /tf_static and /tf still there (the
+    section as written, docs/interface.md)."""
+    scenario = _default(["tf.map_odometry=false"])
+    produced = {t: p.msgtype for t, p in resolve_plan(scenario).topics.items()}
+    out = derived_topics(scenario, produced)
+    assert list(out) == ["/tf_static", "/tf"]
+    assert not any(t.endswith("_map") for t in resolve_plan(scenario).topics)
+
+
+def test_stage_settings_from_the_tf_rates():
+    """TFStage's periods: body 1e9 / 50 Hz = 20 ms, navigator 1e9 / 10 Hz = 100 ms; without
+    the rates T = 5 ms and N T = 50 ms; without a navigator none. The aiding sensors' frames in
+    /tf_static at their lever arms FRD → FLU: gnss [1, 0, −1.2] → [1, 0, 1.2], barometer
+    [2, 0.5, 0] → [2, −0.5, 0]; the magnetometer (no lever arm, the IMU's frame) has none."""
+    s = TFStage(resolve_plan(_default(DECIMATED))).settings
+    assert (s.t0_ns, s.period_ns, s.body_period_ns, s.navigator_period_ns) == (
+        T0, 5_000_000, 20_000_000, 100_000_000)  # fmt: skip
+    assert (s.tf, s.map_odometry, s.increments) == (True, True, True)
+    stage = TFStage(resolve_plan(_default([])))
+    s = stage.settings
+    assert (s.body_period_ns, s.navigator_period_ns, s.increments) == (5_000_000, 50_000_000, False)
+    levers = {f: list(v) for f, v in stage.sensor_frames}
+    assert len(levers) == 2 and all(f != stage.frames["reference_imu"] for f in levers)
+    assert sorted(levers.values()) == [[1.0, 0.0, 1.2], [2.0, -0.5, 0.0]]
+    bare = TFStage(resolve_plan(_default(["navigator=null"])))
+    assert bare.settings.navigator_period_ns is None
+
+
+def _odometry(stamps: list[int], frame: str = "earth") -> OdometryFields:
+    n = len(stamps)
+    pos = np.arange(3 * n, dtype=np.float64).reshape(n, 3)
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    return OdometryFields(np.asarray(stamps, dtype=np.int64), frame, "reference_imu", pos, q,
+                          np.zeros((n, 36)), np.zeros((n, 3)), np.zeros((n, 3)),
+                          np.zeros((n, 36)))  # fmt: skip
+
+
+def test_observe_reference_keeps_what_the_variation_pairs_with():
+    """Reference poses kept for ``base_link → variation_imu`` (default.yaml: moving
+    variation): two overlapping chunks, stamps [0, 5, 10] then [10, 15] ms, keep each stamp
+    once, sorted, the first chunk's pose at the repeat (its position row 2 = [6, 7, 8]); none
+    kept from a frame other than ``earth``, with ``variation_tf`` False, or with TF off."""
+    plan = resolve_plan(_default([]))
+    ms = 1_000_000
+    stage = TFStage(plan)
+    stage.observe_reference(_odometry([T0, T0 + 5 * ms, T0 + 10 * ms]))
+    stage.observe_reference(_odometry([T0 + 10 * ms, T0 + 15 * ms]))
+    assert stage._ref_t.tolist() == [T0 + k * ms for k in (0, 5, 10, 15)]
+    assert stage._ref_p[2].tolist() == [6.0, 7.0, 8.0]
+    assert stage._ref_p[3].tolist() == [3.0, 4.0, 5.0]
+    other = TFStage(plan)
+    other.observe_reference(_odometry([T0], frame="map"))
+    off = TFStage(plan, variation_tf=False)
+    off.observe_reference(_odometry([T0]))
+    no_tf = TFStage(resolve_plan(_default(["tf.enabled=false"])))
+    no_tf.observe_reference(_odometry([T0]))
+    assert other._ref_t.size == off._ref_t.size == no_tf._ref_t.size == 0
