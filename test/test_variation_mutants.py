@@ -56,3 +56,42 @@ def test_variation_needs_one_cycle_ahead() -> None:
     ref.cycles = 5  # 6 reference samples
     with pytest.raises(ValueError, match=r"needs 7 reference and offset samples .* got 6 and 7"):
         variation_constraints(ref, off, 5)  # type: ignore[arg-type]
+
+
+def _rest_stream(n: int, model: str = "spherical"):
+    from strapdown_ros.core.stream import Stream
+
+    return Stream(
+        5_000, 10_000_000, np.zeros((n - 1, 3)), np.zeros((n - 1, 3)),
+        np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), np.tile([6378137.0, 0.0, 0.0], (n, 1)),
+        gravity_model=model, e0_epoch_ns=123_456,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("method", [1, 2])
+def test_window_output_keeps_epoch_model_and_starts_one_period_later(method: int) -> None:
+    """With ``lead`` 1 the output starts at reference sample 1 (docstring): t0 + period_ns, by
+    hand 5_000 + 10_000_000 ns; E0 epoch and gravity model are the reference's own."""
+    from strapdown_ros.core.variation import generate_variation
+
+    out = generate_variation(_rest_stream(7), OffsetArrays.zero(7), method=method, lead=1)
+    assert out.t0_ns == 10_005_000
+    assert out.e0_epoch_ns == 123_456
+    assert out.gravity_model == "spherical"
+
+
+@pytest.mark.parametrize(
+    "lead,cycles,message",
+    [
+        (5, 6, r"^lead must be 0 or 1, got 5$"),
+        (0, 2, r"^a variation needs a reference of at least 3 cycles, got 2$"),
+        (1, 3, r"^a variation needs a reference of at least 4 cycles, got 3$"),
+    ],
+)
+def test_generate_variation_messages(lead: int, cycles: int, message: str) -> None:
+    """The messages of generate_variation's checks, written out by hand from its docstring (a
+    reference of M cycles gives M_var = M - 1 - lead rounded down to even, at least 2)."""
+    from strapdown_ros.core.variation import generate_variation
+
+    with pytest.raises(ValueError, match=message):
+        generate_variation(_rest_stream(cycles + 1), OffsetArrays.zero(cycles + 1), lead=lead)
