@@ -156,6 +156,8 @@ def test_stage_settings_from_the_tf_rates():
     levers = {f: list(v) for f, v in stage.sensor_frames}
     assert len(levers) == 2 and all(f != stage.frames["reference_imu"] for f in levers)
     assert sorted(levers.values()) == [[1.0, 0.0, 1.2], [2.0, -0.5, 0.0]]
+    plain = resolve_plan(_default([])).topics["/tf"]
+    assert plain.count == 201 + 199 + 20  # every truth, variation and navigator output
     bare = TFStage(resolve_plan(_default(["navigator=null"])))
     assert bare.settings.navigator_period_ns is None
 
