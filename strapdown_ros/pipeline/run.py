@@ -186,7 +186,7 @@ class _LiveRun:
         time_source = "sim" if self.plan.scenario.recording.clock else "wall"
         pace = f"rate_factor {rate_factor:g}" if rate_factor > 0 else "unpaced"
         params = [f"rate_factor:={float(rate_factor)}", "qos_depth:=10000"]
-        if self.publish_period_s > 0:
+        if self.publish_period_s != 0:  # any other value goes to the node, which checks it
             pace += f", in groups of {self.publish_period_s * 1e3:g} ms"
             params.append(f"publish_period_s:={float(self.publish_period_s)}")
         if self.flow_control:
