@@ -1,7 +1,7 @@
 """Covariance prediction against a campaign's ensemble: table and figure.
 
 Usage: python tools/plot_covariance_campaign.py CAMPAIGN_DIR BAG OUT_PREFIX [--every K]
-       [--realized] [--skip S]
+       [--realized] [--skip S] [--height]
 
 CAMPAIGN_DIR: a ``strapdown-sim campaign`` output; BAG: the campaign's scenario generated once
 (``strapdown-sim generate SCENARIO --out BAG --set <the campaign's common overrides>``), from
@@ -11,7 +11,9 @@ the predicted mean ± 1σ and ± 3σ, and the ratio σ_ens / σ_pred with the χ
 ``--every K``: propagate with steps of K navigator periods (default 1). ``--realized``: also
 the prediction started from the campaign's drawn constants (covariance_check.
 realized_initial_covariance), written as OUT_PREFIX_realized.md/.png. ``--skip S``: epochs
-compared from S s on (default 60).
+compared from S s on (default 60). ``--height``: the down position error compared as the
+linear model's −δh, the Earth's curvature under the horizontal error removed
+(covariance_check.down_as_height_error, at the scenario's initial position).
 """
 
 from __future__ import annotations
@@ -75,6 +77,10 @@ def main(argv: list[str]) -> int:
     out, bag, prefix = Path(argv[0]), Path(argv[1]), Path(argv[2])
     scenario = cc.campaign_scenario(out)
     ensemble = cc.read_ensemble(out)
+    if "--height" in argv:
+        ensemble = cc.down_as_height_error(
+            ensemble, np.radians(scenario.initial.latitude_deg), scenario.initial.altitude_m
+        )
     n = ensemble.errors.shape[0]
     variants = [(prefix, None, "population (the error model's variances)")]
     if "--realized" in argv:

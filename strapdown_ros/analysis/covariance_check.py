@@ -50,6 +50,7 @@ from strapdown_ros.core.covariance import (
     initial_moments,
     propagate_covariance,
 )
+from strapdown_ros.core.earth import radii
 from strapdown_ros.core.imu_errors import ImuErrorParameters
 from strapdown_ros.core.rotations import dcm_from_rotvec, rotvec_from_dcm
 from strapdown_ros.messages import imu_increments
@@ -64,6 +65,7 @@ __all__ = [
     "ScenarioModel",
     "campaign_scenario",
     "compare_ensemble",
+    "down_as_height_error",
     "predict_scenario",
     "campaign_seeds",
     "read_ensemble",
@@ -282,6 +284,23 @@ def read_ensemble(out: str | Path) -> Ensemble:
             raise ValueError(f"{out}: run {r} has other stamps than run {runs[0]}")
         errors[i] = e
     return Ensemble(np.asarray(stamps, dtype=np.int64), errors)
+
+
+def down_as_height_error(ensemble: Ensemble, latitude_rad: float, altitude_m: float) -> Ensemble:
+    """The ensemble with its down position error as the linear model's ``δr_D = −δh``.
+
+    The error topic's δr is the NED vector (m) from the true position to the computed one, so a
+    computed point at the true height displaced horizontally by (δr_N, δr_E) lies
+    ``c = δr_N² / (2 (R_N + h)) + δr_E² / (2 (R_E + h))`` below the tangent plane (R_N, R_E the
+    meridian and prime-vertical radii at ``latitude_rad``, the principal radii of curvature of
+    the ellipsoid's normal sections): ``δr_D − c = −δh`` to second order in the horizontal
+    error, which the linear model (first order) lacks. The radii are taken at one latitude and
+    height (the scenario's initial position: for a static or short scenario).
+    """
+    r_n, r_e = (float(r) + altitude_m for r in radii(latitude_rad))
+    errors = ensemble.errors.copy()
+    errors[..., 2] -= 0.5 * (errors[..., 0] ** 2 / r_n + errors[..., 1] ** 2 / r_e)
+    return Ensemble(ensemble.stamps_ns, errors)
 
 
 @dataclass(frozen=True)
