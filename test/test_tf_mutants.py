@@ -11,15 +11,26 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
+from scipy.spatial.transform import Rotation
 
+from strapdown_ros.bag import cdr
+from strapdown_ros.bag.batches import Batch, batch
 from strapdown_ros.config import load_scenario
+from strapdown_ros.core.variation import OffsetArrays
 from strapdown_ros.generate import generate_dataset
 from strapdown_ros.messages import OdometryFields
 from strapdown_ros.plan.resolve import resolve_plan
-from strapdown_ros.stages.tf import TFStage, derived_topics, plan_datum
+from strapdown_ros.stages.tf import (
+    TFStage,
+    _every,
+    derived_topic_plans,
+    derived_topics,
+    plan_datum,
+)
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 TS = get_typestore(Stores.ROS2_JAZZY)
@@ -162,11 +173,12 @@ def test_stage_settings_from_the_tf_rates():
     assert bare.settings.navigator_period_ns is None
 
 
-def _odometry(stamps: list[int], frame: str = "earth") -> OdometryFields:
+def _odometry(stamps: list[int], frame: str = "earth", pos=None, q=None,
+              child: str = "reference_imu") -> OdometryFields:  # fmt: skip
     n = len(stamps)
-    pos = np.arange(3 * n, dtype=np.float64).reshape(n, 3)
-    q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-    return OdometryFields(np.asarray(stamps, dtype=np.int64), frame, "reference_imu", pos, q,
+    pos = np.arange(3 * n, dtype=np.float64).reshape(n, 3) if pos is None else np.asarray(pos)
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)) if q is None else np.asarray(q)
+    return OdometryFields(np.asarray(stamps, dtype=np.int64), frame, child, pos, q,
                           np.zeros((n, 36)), np.zeros((n, 3)), np.zeros((n, 3)),
                           np.zeros((n, 36)))  # fmt: skip
 
@@ -191,3 +203,152 @@ def test_observe_reference_keeps_what_the_variation_pairs_with():
     no_tf = TFStage(resolve_plan(_default(["tf.enabled=false"])))
     no_tf.observe_reference(_odometry([T0]))
     assert other._ref_t.size == off._ref_t.size == no_tf._ref_t.size == 0
+
+
+# -- _every, plan_datum's error, _odometry, _variation_tf, feed_batches, offsets, stable sort --
+
+MS = 1_000_000
+
+
+def test_every_keeps_one_in_ratio_from_the_first():
+    """1 in r of n consecutive messages, the first kept: len(range(0, n, r)) (0 for none, 1
+    for one); the planned /tf of a truth topic of 0 or 1 messages (body 50 Hz: 1 in 4)."""
+    for n in range(10):
+        for r in range(1, 5):
+            assert _every(n, r) == len(range(0, n, r)), (n, r)
+            assert isinstance(_every(n, r), int)
+    plan = resolve_plan(_default(DECIMATED))
+    up = {t: p for t, p in plan.topics.items() if p.link != "tf"}
+    for ref in (0, 1):
+        few = {
+            t: dataclasses.replace(p, count=ref if p.key == "reference_odom" else 0)
+            if p.key in ("reference_odom", "variation_odom", "navigator_odom") else p
+            for t, p in up.items()
+        }  # fmt: skip
+        tf = next(p for p in derived_topic_plans(plan, few) if p.key == "tf")
+        assert tf.count == ref
+
+
+def test_datum_without_any_position_is_an_error():
+    """No ``tf.datum``, no ``initial`` and no trajectory: the exact error message."""
+    scenario = load_scenario(SCENARIOS / "default.yaml", duration_s=1.0)
+    plan = resolve_plan(scenario)
+    bare = dataclasses.replace(plan, scenario=scenario.model_copy(update={"initial": None}))
+    bare.__dict__["trajectory"] = None
+    with pytest.raises(ValueError) as err:
+        plan_datum(bare)
+    assert str(err.value) == "the scenario has no initial position for the map datum"
+
+
+def _enu(lat: float, lon: float) -> np.ndarray:
+    """Rows: east, north, up in ECEF (C_E^ENU)."""
+    sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+    return np.array([[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]])
+
+
+def _transforms(b) -> list:
+    msgs = [TS.deserialize_cdr(bytes(p), "tf2_msgs/msg/TFMessage") for p in b.payloads]
+    return [tr for m in msgs for tr in m.transforms]
+
+
+def _stamp(tr) -> int:
+    return tr.header.stamp.sec * 10**9 + tr.header.stamp.nanosec
+
+
+def _pose(tr) -> tuple[np.ndarray, Rotation]:
+    v, q = tr.transform.translation, tr.transform.rotation
+    return np.array([v.x, v.y, v.z]), Rotation.from_quat([q.x, q.y, q.z, q.w])
+
+
+def test_navigator_tf_at_its_rate_and_nothing_from_other_frames():
+    """default.yaml, navigator TF 10 Hz: navigator Odometry every 50 ms gives ``map →
+    <child>`` at 0 and 100 ms, at the ENU offsets [k, 2k, −k] m from the initial position
+    (closed-form ECEF and ENU axes), rotated C_E^ENU R (scipy); Odometry in another frame or
+    none at all derives nothing."""
+    scenario = _default(DECIMATED)
+    stage = TFStage(resolve_plan(scenario))
+    ini = scenario.initial
+    lat, lon = math.radians(ini.latitude_deg), math.radians(ini.longitude_deg)
+    r0, c = _ecef(lat, lon, ini.altitude_m), _enu(lat, lon)
+    enu = np.array([[k, 2.0 * k, -k] for k in range(4)])
+    rot = Rotation.from_euler("zyx", [[0.1 * k, 0.2, -0.3 * k] for k in range(4)])
+    nav = _odometry([T0 + 50 * k * MS for k in range(4)], pos=r0 + enu @ c, q=rot.as_quat(),
+                    child="navigator_imu")  # fmt: skip
+    out = stage._odometry("navigator_odom", nav)
+    assert [b.topic for b in out] == ["/navigator/odom_map", "/tf"]
+    trs = _transforms(out[1])
+    assert [_stamp(t) for t in trs] == [T0, T0 + 100 * MS]
+    assert {(t.header.frame_id, t.child_frame_id) for t in trs} == {("map", "navigator_imu")}
+    for t, k in zip(trs, (0, 2), strict=True):
+        p, r = _pose(t)
+        np.testing.assert_allclose(p, enu[k], rtol=0, atol=1e-5)
+        want = Rotation.from_matrix(c) * rot[k]
+        assert (r.inv() * want).magnitude() < 1e-9
+    assert stage._odometry("navigator_odom", _odometry([T0], frame="map")) == []
+    assert stage._odometry("reference_odom", _odometry([T0], frame="map")) == []
+    assert stage._odometry("reference_odom", _odometry([])) == []
+
+
+def test_variation_tf_pairs_with_the_reference_of_the_same_stamp():
+    """default.yaml (moving variation, body TF at every cycle): reference poses at 0..25 ms,
+    variation at 5, 10, 15 and 35 ms (no reference there), fed after an empty batch.
+    ``base_link → variation_imu`` at 5, 10, 15 ms is R_refᵀ (p_var − p_ref), R_refᵀ R_var
+    (scipy); the reference poses after 15 ms are kept for the next chunk, which pairs the last one
+    (25 ms); none without a reference pose."""
+    stage = TFStage(resolve_plan(_default([])))
+    rng = np.random.default_rng(7)
+    t_ref = [T0 + 5 * k * MS for k in range(6)]
+    p_ref = rng.normal(0.0, 1e3, (6, 3)) + [4e6, 1e6, 4.8e6]
+    r_ref = Rotation.random(6, random_state=1)
+    t_var = [T0 + 5 * k * MS for k in (1, 2, 3, 7)]
+    p_var = p_ref[[1, 2, 3, 0]] + rng.normal(0.0, 2.0, (4, 3))
+    r_var = Rotation.random(4, random_state=2)
+    empty = Batch("/reference/imu", cdr.IMU, np.zeros(0, dtype=np.int64), [])
+    ref = batch("/reference/odom", _odometry(t_ref, pos=p_ref, q=r_ref.as_quat()))
+    var = batch("/variation/odom", _odometry(t_var, pos=p_var, q=r_var.as_quat(),
+                                             child="variation_imu"))  # fmt: skip
+    out = stage.feed_batches([empty, ref, var])
+    assert [b.topic for b in out] == ["/reference/odom_map", "/tf", "/variation/odom_map", "/tf"]
+    trs = _transforms(out[3])
+    assert [_stamp(t) for t in trs] == t_var[:3]
+    assert {(t.header.frame_id, t.child_frame_id) for t in trs} == {("base_link", "variation_imu")}
+    for t, j, k in zip(trs, range(3), (1, 2, 3), strict=True):
+        p, r = _pose(t)
+        np.testing.assert_allclose(p, r_ref[k].inv().apply(p_var[j] - p_ref[k]), rtol=0, atol=1e-9)
+        assert (r.inv() * r_ref[k].inv() * r_var[j]).magnitude() < 1e-9
+    assert stage._ref_t.tolist() == t_ref[4:]
+    np.testing.assert_array_equal(stage._ref_p, p_ref[4:])
+    last = _odometry([t_ref[5]], pos=p_ref[:1], q=r_var[:1].as_quat())
+    more = stage._odometry("variation_odom", last)
+    (t,) = _transforms(more[-1])
+    p, r = _pose(t)
+    np.testing.assert_allclose(p, r_ref[5].inv().apply(p_ref[0] - p_ref[5]), rtol=0, atol=1e-9)
+    assert (r.inv() * r_ref[5].inv() * r_var[0]).magnitude() < 1e-9
+    fresh = TFStage(resolve_plan(_default([])))  # no reference pose yet: no variation TF
+    assert [b.topic for b in fresh._odometry("variation_odom", last)] == ["/variation/odom_map"]
+
+
+def test_given_offsets_are_the_static_variation():
+    """savage_test_example.yaml (static variation) with offsets passed in: /tf_static's
+    ``base_link → variation_imu`` is their lever arm [3, 2, 1] m FRD (FLU [3, −2, −1]), not
+    the scenario's [1, 0.5, 0]."""
+    scenario = load_scenario(SCENARIOS / "savage_test_example.yaml", duration_s=1.0)
+    plan = resolve_plan(scenario)
+    n = plan.cycles + 1
+    given = OffsetArrays(np.tile([3.0, 2.0, 1.0], (n, 1)), np.zeros((n, 3)),
+                         np.tile(np.eye(3), (n, 1, 1)))  # fmt: skip
+    b = TFStage(plan, offsets=given).static_batch()
+    assert b is not None
+    by_pair = {(t.header.frame_id, t.child_frame_id): t for t in _transforms(b)}
+    p, r = _pose(by_pair[("base_link", "variation_imu")])
+    np.testing.assert_allclose(p, [3.0, -2.0, -1.0], rtol=0, atol=1e-12)
+    assert r.magnitude() < 1e-12
+
+
+def test_observe_reference_keeps_the_first_of_many_repeats():
+    """200 poses at 10 stamps (row k at stamp k mod 10, position row [3k, 3k + 1, 3k + 2]):
+    each stamp once, with its first row k = stamp's index (a stable sort)."""
+    stage = TFStage(resolve_plan(_default([])))
+    stage.observe_reference(_odometry([T0 + (k % 10) * MS for k in range(200)]))
+    assert stage._ref_t.tolist() == [T0 + j * MS for j in range(10)]
+    assert stage._ref_p.tolist() == [[3.0 * j, 3.0 * j + 1, 3.0 * j + 2] for j in range(10)]
