@@ -352,3 +352,29 @@ def test_observe_reference_keeps_the_first_of_many_repeats():
     stage.observe_reference(_odometry([T0 + (k % 10) * MS for k in range(200)]))
     assert stage._ref_t.tolist() == [T0 + j * MS for j in range(10)]
     assert stage._ref_p.tolist() == [[3.0 * j, 3.0 * j + 1, 3.0 * j + 2] for j in range(10)]
+
+
+def _imu(stamps: list[int]):
+    from strapdown_ros.messages import ImuFields
+
+    n = len(stamps)
+    z3, z9 = np.zeros((n, 3)), np.zeros((n, 9))
+    return ImuFields(np.asarray(stamps, dtype=np.int64), "reference_imu",
+                     np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), z9, z3, z9, z3, z9)  # fmt: skip
+
+
+def test_feed_batches_reads_each_batch_as_its_type_only():
+    """Increments derived only when configured (default.yaml has them off, on with
+    ``recording.increments``), from Imu batches of the IMU topics; an Imu batch on an Odometry
+    topic or an Odometry batch on a topic TF does not derive from gives nothing."""
+    stamps = [T0 + 5 * k * MS for k in range(4)]
+    imu = batch("/reference/imu", _imu(stamps))
+    off = TFStage(resolve_plan(_default([])))
+    assert off.feed_batches([imu]) == []
+    on = TFStage(resolve_plan(_default(["recording.increments=true"])))
+    assert [b.topic for b in on.feed_batches([imu])] == ["/reference/imu_dv", "/reference/imu_dq"]
+    mislabeled = Batch("/reference/odom", cdr.IMU, imu.stamps_ns, imu.payloads)
+    assert on.feed_batches([mislabeled]) == []
+    assert on._ref_t.size == 0  # not taken for reference poses
+    other = batch("/elsewhere/odom", _odometry(stamps))
+    assert on.feed_batches([other]) == []
