@@ -156,7 +156,7 @@ def test_every_plot_renders_from_a_generated_bag(bags: dict[str, Path]) -> None:
     result = write_report(bags["full"], compare=[bags["method1"]])
     assert result.out_dir == bags["full"] / "report"
     assert sorted(result.plots) == sorted(EVERY_PLOT)
-    assert list(result.omitted) == ["aided"]  # no aided filter in these bags
+    assert list(result.omitted) == ["aided", "transfer"]  # no filter in these bags
     for name in EVERY_PLOT:
         path = result.out_dir / f"{name}.png"
         assert result.plots[name] == path
@@ -269,18 +269,21 @@ def test_rerun_replaces_old_plots(bags: dict[str, Path]) -> None:
     """Plots of an earlier report that no longer apply are removed, other files kept."""
     out = bags["dir"] / "rerun"
     out.mkdir()
-    for name in ("navigation_errors.png", "allan_x.png", "method_comparison_2.png"):
+    for name in ("navigation_errors.png", "allan_x.png", "method_comparison_2.png",
+                 "transfer_mounting.png"):
         (out / name).write_bytes(b"stale")
     (out / "notes.txt").write_text("mine")
     result = write_report(bags["plain"], out, exactness=False)
     assert not list(out.glob("navigation_errors*")) and not list(out.glob("allan*"))
-    assert not list(out.glob("method_comparison*"))
+    assert not list(out.glob("method_comparison*")) and not list(out.glob("transfer_*"))
     assert (out / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in out.glob("*.png")) == sorted(
         p.name for p in result.plots.values()
     )
     assert "not requested (--no-exactness)" in result.markdown.read_text(encoding="utf-8")
-    assert len(PLOT_FILES) == 11  # + free_inertial, aided_errors, aided_consistency
+    # + free_inertial, aided_errors, aided_consistency, transfer_errors, transfer_consistency,
+    # transfer_mounting
+    assert len(PLOT_FILES) == 14
 
 
 def test_fix_only_bag(tmp_path: Path, bags: dict[str, Path]) -> None:

@@ -37,6 +37,7 @@ __all__ = [
 #: Output key -> topic name below ``topic_prefix``.
 TRANSFER_OUTPUTS = {
     "odom": "odom",
+    "vel": "vel",
     "error_position": "error/position",
     "error_velocity": "error/velocity",
     "error_attitude": "error/attitude",

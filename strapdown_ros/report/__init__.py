@@ -30,6 +30,7 @@ from strapdown_ros.report.data import (
 )
 from strapdown_ros.report.free_inertial import ErrorGrowth, FreeInertial
 from strapdown_ros.report.solutions import Solution
+from strapdown_ros.report.transfer import TransferResult
 
 __all__ = ["PLOT_FILES", "ReportError", "ReportResult", "method_of", "write_report"]
 
@@ -47,6 +48,9 @@ PLOT_FILES = (
     "free_inertial*.png",
     "aided_errors*.png",
     "aided_consistency*.png",
+    "transfer_errors*.png",
+    "transfer_consistency*.png",
+    "transfer_mounting*.png",
 )
 
 
@@ -64,6 +68,8 @@ class ReportResult:
     free_inertial: list[FreeInertial] = field(default_factory=list)
     free_inertial_s: float = 0.0  #: wall time of those runs (decoding the IMU and truth included)
     aided: dict[str, AidedResult] = field(default_factory=dict)  #: prefix -> recomputed errors
+    #: prefix -> a transfer filter's recomputed slave errors and mounting error
+    transfer: dict[str, TransferResult] = field(default_factory=dict)
 
 
 def _slug(prefix: str) -> str:
@@ -148,17 +154,20 @@ def write_report(
     from strapdown_ros.report import plots, summary
     from strapdown_ros.report.aided import aided_prefixes
     from strapdown_ros.report.solutions import bag_solutions, solution_table
+    from strapdown_ros.report.transfer import transfer_prefixes
 
     start = time.perf_counter()
     data = load_bag(bag, exactness=exactness, gravity_model=gravity_model)
-    aided = aided_prefixes(data.contents)
+    transfer = transfer_prefixes(data.contents)
+    aided = [p for p in aided_prefixes(data.contents) if p not in transfer]
+    filters = aided + transfer
     others = [load_bag(p, exactness=False, allan=False, odometry_only=True) for p in compare]
     out_dir = Path(out) if out is not None else Path(bag) / "report"
     out_dir.mkdir(parents=True, exist_ok=True)
     _clear_old(out_dir)
     result = ReportResult(out_dir, out_dir / "report.md")
     md = summary.header(data)
-    solutions = bag_solutions(data, aided)
+    solutions = bag_solutions(data, aided, transfer)
     sections: list[str] = []
     images: list[tuple[str, str, str]] = []  # (name, file, caption)
 
@@ -201,7 +210,7 @@ def write_report(
         result.omitted["exactness"] = "not requested (--no-exactness)"
 
     # --- navigation errors
-    nav_errors = {o: es for o, es in data.errors.items() if o not in aided}
+    nav_errors = {o: es for o, es in data.errors.items() if o not in filters}
     if nav_errors:
         for owner, es in nav_errors.items():
             suffix = "" if owner == "/navigator" else "_" + _slug(owner)
@@ -216,9 +225,9 @@ def write_report(
 
     # --- Method 1 vs Method 2 (or any two variation streams)
     candidates = [(data, s, _label(data, s, bool(others))) for s in data.variation_streams()
-                  if s.prefix not in aided]  # fmt: skip
+                  if s.prefix not in filters]  # fmt: skip
     for o in others:
-        o_aided = aided_prefixes(o.contents)
+        o_aided = aided_prefixes(o.contents) + transfer_prefixes(o.contents)
         candidates += [(o, s, _label(o, s, True)) for s in o.variation_streams()
                        if s.prefix not in o_aided]  # fmt: skip
     if len(candidates) >= 2:
@@ -286,6 +295,7 @@ def write_report(
 
     # --- aided filter
     sections += _aided_sections(data, aided, result, draw)
+    sections += _transfer_sections(data, transfer, result, draw)
 
     result.elapsed_s = time.perf_counter() - start
     if solutions:
@@ -403,4 +413,42 @@ def _aided_sections(data: BagData, aided: list[str], result: ReportResult,
         draw(f"aided_consistency{suffix}", f"aided_consistency{suffix}.png",
              f"NEES of `{prefix}` (recomputed) and NIS per measurement with the 95 % χ² "
              "interval.", plot_aided_consistency, a, data.name)  # fmt: skip
+    return out
+
+
+def _transfer_sections(data: BagData, transfer: list[str], result: ReportResult,
+                       draw) -> list[str]:  # noqa: ANN001  # fmt: skip
+    """The slave's errors, NEES and NIS and the mounting error of each transfer filter,
+    recomputed from the bag."""
+    from strapdown_ros.report.aided import aided_table, plot_aided_consistency, plot_aided_errors
+    from strapdown_ros.report.transfer import plot_transfer_mounting, transfer_data, transfer_table
+
+    out: list[str] = []
+    if not transfer:
+        result.omitted["transfer"] = (
+            "no transfer-alignment outputs (`P/odom` + `P/mounting/estimate`, the "
+            "`transfer_alignment` section's `/transfer/*`)"
+        )
+        return out
+    for prefix in transfer:
+        suffix = "" if prefix == "/transfer" else "_" + _slug(prefix)
+        r = transfer_data(data.contents, prefix, data.start_ns)
+        if isinstance(r, str):
+            result.omitted[f"transfer{suffix}"] = r
+            continue
+        result.transfer[prefix] = r
+        out += ["", f"## Transfer alignment `{prefix}`", "", "### The slave INS", ""]
+        out += aided_table(r.slave)
+        out += ["", "### The mounting", ""] + transfer_table(r)
+        draw(f"transfer_errors{suffix}", f"transfer_errors{suffix}.png",
+             f"The slave `{prefix}` minus its truth per axis with the filter's ±3σ.",
+             plot_aided_errors, r.slave, data.name)  # fmt: skip
+        draw(f"transfer_consistency{suffix}", f"transfer_consistency{suffix}.png",
+             f"NEES of the slave `{prefix}` (recomputed) and NIS of the velocity and attitude "
+             "matching with the 95 % χ² interval.", plot_aided_consistency, r.slave,
+             data.name)  # fmt: skip
+        draw(f"transfer_mounting{suffix}", f"transfer_mounting{suffix}.png",
+             f"The mounting estimate of `{prefix}` minus the truths' relative attitude with the "
+             "filter's ±3σ, and |error| against σ.", plot_transfer_mounting, r,
+             data.name)  # fmt: skip
     return out

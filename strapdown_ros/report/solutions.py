@@ -25,6 +25,8 @@ __all__ = ["REFERENCE_IMU", "Solution", "bag_solutions", "imu_kind", "solution_t
 
 #: The IMU the aided filter's error model measures (``recording.topics.reference_imu``).
 REFERENCE_IMU = "/reference/imu"
+#: The IMU a transfer-alignment slave integrates (the variation stream's, ideal or measured).
+VARIATION_IMU = "/variation/imu"
 
 
 @dataclass(frozen=True)
@@ -70,11 +72,24 @@ def _aided_imu(bag: BagData) -> tuple[str | None, str]:
     return None, f"the imu_errors output of `{REFERENCE_IMU}` is not in the bag"
 
 
-def bag_solutions(bag: BagData, aided: Sequence[str] = ()) -> list[Solution]:
-    """The navigators and aided filters (prefixes ``aided``) of the bag, in that order."""
+def _transfer_imu(bag: BagData) -> tuple[str | None, str]:
+    for m in bag.measured.values():
+        if m.ideal is not None and m.ideal.topic == VARIATION_IMU:
+            return m.measured.topic, (
+                f"the slave runs on the variation IMU: the imu_errors output of `{VARIATION_IMU}` "
+                "(transfer_alignment.imu_topic)")  # fmt: skip
+    if VARIATION_IMU in bag.contents.topics:
+        return VARIATION_IMU, "the slave runs on the variation IMU (transfer_alignment.imu_topic)"
+    return None, f"`{VARIATION_IMU}` is not in the bag"
+
+
+def bag_solutions(bag: BagData, aided: Sequence[str] = (),
+                  transfer: Sequence[str] = ()) -> list[Solution]:  # fmt: skip
+    """The navigators, aided filters (prefixes ``aided``) and transfer filters (``transfer``)
+    of the bag, in that order."""
     cd = bag.contents.custom_data
     owners = [p for p in bag.streams if is_navigator(p)]
-    owners += [p for p in bag.errors if p not in owners and p not in aided]
+    owners += [p for p in bag.errors if p not in owners and p not in (*aided, *transfer)]
     out = []
     for owner in owners:
         key = owner.strip("/")
@@ -89,6 +104,10 @@ def bag_solutions(bag: BagData, aided: Sequence[str] = ()) -> list[Solution]:
         topic, source = _aided_imu(bag)
         kind = imu_kind(bag, topic) if topic else "measured"
         out.append(Solution(prefix, "aided filter", topic, kind, "/reference/odom", source))
+    for prefix in transfer:
+        topic, source = _transfer_imu(bag)
+        out.append(Solution(prefix, "transfer alignment (slave)", topic, imu_kind(bag, topic),
+                            "/variation/odom", source))  # fmt: skip
     return out
 
 

@@ -54,6 +54,7 @@ from strapdown_ros.core.transfer.measurements import (
 )
 from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
+    TwistWithCovarianceStampedFields,
     imu_increments,
     odometry_fields_from_ecef,
     odometry_state,
@@ -80,6 +81,11 @@ FLOOR_P0 = (1e-3, 1e-3)
 #: Spawn keys of the draws: master errors, mounting error, initial errors.
 STREAM_MASTER, STREAM_MOUNT, STREAM_INITIAL = 20, 21, 22
 _FLU = np.array([1.0, -1.0, -1.0])
+_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # NED <-> ENU
+#: Message type of each output key not a Vector3Stamped.
+_MSGTYPES = {"odom": cdr.ODOMETRY, "vel": cdr.TWIST_WITH_COVARIANCE_STAMPED}
+#: Variance given to the angular part of ``vel`` (not estimated there; as ``/aided/vel``).
+NOT_ESTIMATED_VARIANCE = 1e6
 def _require(scenario: Scenario) -> TransferAlignmentSpec:
     return required_section(scenario, "transfer_alignment")
 
@@ -118,7 +124,7 @@ def transfer_topic_plans(scenario: Scenario, last_cycle: int,
                                  t0 + first * tp if n_meas else None,
                                  t0 + (count - 1) * tp if n_meas else None))  # fmt: skip
             continue
-        msgtype = cdr.ODOMETRY if key == "odom" else cdr.VECTOR3_STAMPED
+        msgtype = _MSGTYPES.get(key, cdr.VECTOR3_STAMPED)
         out.append(TopicPlan(topic, msgtype, count, link, None, t0, t0 + (count - 1) * tp))
     return out
 
@@ -426,6 +432,12 @@ class TransferStage:
             stamps, rep.r_e, rep.v_e, rep.c_b_e, rep.omega_eb_b, self.spec.frame_id,
             self.earth_frame, pose_covariance=rep.pose_cov.reshape(k, 36),
             twist_covariance=twist.reshape(k, 36))}  # fmt: skip
+        vcov = np.zeros((k, 6, 6))
+        vcov[:, :3, :3] = _ENU @ rep.vel_cov_ned @ _ENU
+        vcov[:, 3:, 3:] = np.eye(3) * NOT_ESTIMATED_VARIANCE
+        out["vel"] = TwistWithCovarianceStampedFields(
+            stamps_ns=stamps, frame_id=self.spec.frame_id, linear=rep.v_ned @ _ENU,
+            angular=np.zeros((k, 3)), covariance=vcov.reshape(k, 36))  # fmt: skip
         r_true = np.array([r["truth"][0] for r in rows])
         v_true = np.array([r["truth"][1] for r in rows])
         c_true = np.array([r["truth"][2] for r in rows])

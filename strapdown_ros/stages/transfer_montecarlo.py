@@ -33,6 +33,7 @@ from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch
 from strapdown_ros.config import Scenario, load_scenario
 from strapdown_ros.core.aided.consistency import Inside, fraction_inside
+from strapdown_ros.core.transfer.convergence import alignment_time
 from strapdown_ros.stages.aided_montecarlo import modelled_only
 
 __all__ = [
@@ -118,16 +119,6 @@ def decode_result(batches: Sequence[Batch], scenario: Scenario) -> TransferResul
     _, mn = vec("mounting_nees")
     _, nis = vec("nis")
     return TransferResult(t, att, vel, mu, sig, ne, mn[:, 0], nis[:, :2])
-
-
-def alignment_time(t: np.ndarray, error: np.ndarray, threshold: float) -> float:
-    """First time after which ``|error|`` stays below ``threshold`` (NaN: never)."""
-    bad = np.flatnonzero(np.abs(error) >= threshold)
-    if not bad.size:
-        return float(t[0])
-    if bad[-1] == len(t) - 1:
-        return float("nan")
-    return float(t[bad[-1] + 1])
 
 
 def _seeded(doc: dict[str, Any], run: int, base_seed: int) -> list[str]:
