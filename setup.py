@@ -33,6 +33,7 @@ NODE_EXECUTABLES = (
     "imu_model_node",
     "aiding_node",
     "aided_node",
+    "transfer_node",
     "bag_recorder",
     "bag_player",
 )

@@ -5,7 +5,8 @@
         [rate_factor:=1.0]
 
 Starts the nodes the scenario needs (``bag_recorder``, ``trajectory_node`` and those of
-``navigator_node``, ``aiding_node``, ``aided_node``, ``imu_model_node``, ``variation_node`` the
+``navigator_node``, ``aiding_node``, ``aided_node``, ``transfer_node``, ``imu_model_node``,
+``variation_node`` the
 scenario has sections for) with ``config/params.yaml`` (installed under
 ``share/strapdown_ros/config``) and, over it, what :mod:`strapdown_ros.launch_logic` derives
 from the scenario at launch time: each node's ``subscribers_per_topic`` (the start-up handshake,
@@ -29,6 +30,7 @@ NODES = (
     "navigator_node",
     "aiding_node",
     "aided_node",
+    "transfer_node",
     "bag_recorder",
 )
 

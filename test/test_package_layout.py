@@ -36,6 +36,7 @@ CONSOLE_SCRIPTS = {
     "imu_model_node": "strapdown_ros.nodes.usage:imu_model_node",
     "aiding_node": "strapdown_ros.nodes.usage:aiding_node",
     "aided_node": "strapdown_ros.nodes.usage:aided_node",
+    "transfer_node": "strapdown_ros.nodes.usage:transfer_node",
     "bag_recorder": "strapdown_ros.nodes.usage:bag_recorder",
     "bag_player": "strapdown_ros.nodes.usage:bag_player",
 }

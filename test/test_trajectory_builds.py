@@ -65,6 +65,7 @@ NODES = {
     "navigator_node": ("navigator_node", "NavigatorNode", 0),
     "aiding_node": ("aiding_node", "AidingNode", 0),
     "aided_node": ("aided_node", "AidedNode", 0),
+    "transfer_node": ("transfer_node", "TransferNode", 0),
     "bag_recorder": ("bag_recorder", "BagRecorder", 0),
 }
 
@@ -80,6 +81,8 @@ def test_node_start_up_builds(node, ros_env, tmp_path):
     path = SCENARIOS / f"{name}.yaml"
     if node == "aided_node":  # no shipped scenario has an aided section
         path = SCENARIOS.parents[1] / "test" / "data" / "aided_default_noisy.yaml"
+    if node == "transfer_node":
+        path = SCENARIOS / "transfer_alignment.yaml"
     script = _NODE_SCRIPT.format(module=module, cls=cls)
     env = dict(ros_env)
     if node == "bag_recorder":

@@ -17,10 +17,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
 from strapdown_ros.bag.batches import Batch, merge_order
 from strapdown_ros.nodes._batched import StageInputNode
+from strapdown_ros.nodes.batching import header_stamps
 from strapdown_ros.nodes.lifecycle import run_node
 from strapdown_ros.nodes.parameters import declare_scenario
 from strapdown_ros.plan import resolve_plan
@@ -28,23 +27,6 @@ from strapdown_ros.stages.aided import AidedStage, aided_input_topics, aided_top
 from strapdown_ros.stages.intake import format_stamp
 
 NODE_NAME = "aided_node"
-#: Bytes of the CDR encapsulation header, then of the std_msgs/Header stamp (sec i4, nanosec u4)
-#: that every input message type starts with.
-_STAMP = slice(4, 12)
-
-
-def header_stamps(payloads: list[bytes | memoryview]) -> np.ndarray:
-    """Header stamps (ns) read from serialized messages whose first field is a std_msgs/Header;
-    -1 for a payload too short to hold one (the stage's decoder rejects it)."""
-    out = np.full(len(payloads), -1, dtype=np.int64)
-    for i, p in enumerate(payloads):
-        head = bytes(p[_STAMP])
-        if len(head) == 8:
-            sec = int.from_bytes(head[:4], "little", signed=True)
-            out[i] = sec * 1_000_000_000 + int.from_bytes(head[4:], "little")
-    return out
-
-
 class AidedNode(StageInputNode):
     """Measured IMU, truth and aiding measurements in; the aided solution out."""
 

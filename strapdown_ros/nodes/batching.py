@@ -12,9 +12,11 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from strapdown_ros.nodes.parameters import ParameterError, declare_number
 
-__all__ = ["BATCH_PERIOD_S", "InputBatch", "declare_batch_period"]
+__all__ = ["BATCH_PERIOD_S", "InputBatch", "declare_batch_period", "header_stamps"]
 
 #: Default ``batch_period_s``: the longest a received message waits before it is processed.
 BATCH_PERIOD_S = 0.01
@@ -32,6 +34,23 @@ def declare_batch_period(node: Any, default: float = BATCH_PERIOD_S) -> float:
     if not 0 < value <= 1:
         raise ParameterError("batch_period_s", f"must be > 0 and <= 1, got {value}")
     return value
+
+
+#: Bytes of the CDR encapsulation header, then of the std_msgs/Header stamp (sec i4, nanosec u4)
+#: that every input message type starts with.
+_STAMP = slice(4, 12)
+
+
+def header_stamps(payloads: list[bytes | memoryview]) -> np.ndarray:
+    """Header stamps (ns) read from serialized messages whose first field is a std_msgs/Header;
+    -1 for a payload too short to hold one (the stage's decoder rejects it)."""
+    out = np.full(len(payloads), -1, dtype=np.int64)
+    for i, p in enumerate(payloads):
+        head = bytes(p[_STAMP])
+        if len(head) == 8:
+            sec = int.from_bytes(head[:4], "little", signed=True)
+            out[i] = sec * 1_000_000_000 + int.from_bytes(head[4:], "little")
+    return out
 
 
 class InputBatch:

@@ -62,6 +62,13 @@ DESCRIPTIONS: dict[str, str] = {
         "aiding sensors and publishes its solution, its errors against the truth and its NEES,\n"
         "innovations and NIS (/aided/*), byte for byte what `strapdown-sim generate` writes."
     ),
+    "transfer_node": (
+        "Runs the transfer alignment of the variation (slave) IMU's INS: velocity (and attitude)\n"
+        "matching against the reference (master) state carried to the slave, with the mounting\n"
+        "misalignment as states; publishes the slave solution, its errors against the slave\n"
+        "truth, the mounting estimate, its error, σ and NEES (/transfer/*), byte for byte what\n"
+        "`strapdown-sim generate` writes."
+    ),
     "bag_recorder": (
         "Records topics (the scenario's, or `topics`) into a rosbag2 directory (mcap or\n"
         "sqlite3), flushed every flush_period_s; with stop_when_done it finalizes the bag when\n"
@@ -222,6 +229,12 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         *_scenario(),
         *_BATCHED_QOS,
         ("exit_when_done", True, "exit after the last IMU cycle or idle_timeout_s"),
+        *_BATCHED_TAIL,
+    ),
+    "transfer_node": (
+        *_scenario(),
+        *_BATCHED_QOS,
+        ("exit_when_done", True, "exit after the last transfer epoch or idle_timeout_s"),
         *_BATCHED_TAIL,
     ),
     "bag_recorder": (

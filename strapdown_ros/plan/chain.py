@@ -305,8 +305,8 @@ CHAIN: tuple[Link, ...] = (
     Link("aiding", "aiding_node", lambda s: s.aiding is not None and bool(s.aiding.sensors()),
          _aiding_inputs, _aiding_outputs, _aiding_stage),  # fmt: skip
     Link("aided", "aided_node", _aided_enabled, _aided_inputs, _aided_outputs, _aided_stage),
-    Link("transfer_alignment", None, _transfer_enabled, _transfer_inputs, _transfer_outputs,
-         _transfer_stage),  # fmt: skip
+    Link("transfer_alignment", "transfer_node", _transfer_enabled, _transfer_inputs,
+         _transfer_outputs, _transfer_stage),  # fmt: skip
     Link("timing", None, lambda s: s.timing is not None and bool(s.timing.sensors()),
          _timing_inputs, _timing_outputs, _timing_stage),  # fmt: skip
     Link("tf", None, _always, _none, _tf_outputs, _tf_stage),

@@ -22,7 +22,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO = REPO / "config" / "scenarios" / "default.yaml"
 #: Nodes that need a section default.yaml does not have, and the scenario they are built with.
-SCENARIOS = {"aided_node": REPO / "test" / "data" / "aided_default_noisy.yaml"}
+SCENARIOS = {"aided_node": REPO / "test" / "data" / "aided_default_noisy.yaml",
+             "transfer_node": REPO / "config" / "scenarios" / "transfer_alignment.yaml"}
 #: Class of each node executable.
 CLASSES = {
     "trajectory_node": "TrajectoryNode",
@@ -31,6 +32,7 @@ CLASSES = {
     "imu_model_node": "ImuModelNode",
     "aiding_node": "AidingNode",
     "aided_node": "AidedNode",
+    "transfer_node": "TransferNode",
     "bag_recorder": "BagRecorder",
     "bag_player": "BagPlayer",
 }
