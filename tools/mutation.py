@@ -11,6 +11,7 @@ top-level entries, which some tests read) and runs ``mutmut run`` there.
     python tools/mutation.py core/method2.py --tests test/test_method2.py
     python tools/mutation.py                            # setup.cfg's list, as configured
     python tools/mutation.py core/method2.py --results  # survivors of the last run
+    python tools/mutation.py stages/tf.py --timeout 1800  # a slow module fixture under tracing
 
 Extra arguments after ``--`` go to ``mutmut run`` (e.g. mutant names). The run is niced
 (``nice -n 19``) and uses ``--max-children`` 2 unless given.
@@ -103,9 +104,12 @@ def _copy_tree(dest: Path) -> list[str]:
     return sorted({rel.split("/", 1)[0] for rel in files})
 
 
-def _configure(dest: Path, module: str | None, tests: list[str], top: list[str]) -> None:
+def _configure(dest: Path, module: str | None, tests: list[str], top: list[str],
+               timeout_s: int | None = None) -> None:  # fmt: skip
     cfg = configparser.ConfigParser(interpolation=None)
     cfg.read(dest / "setup.cfg")
+    if timeout_s is not None:  # pytest-timeout's per-test limit, also for mutmut's stats run
+        cfg["tool:pytest"]["timeout"] = str(timeout_s)
     section = cfg["mutmut"]
     if module is not None:
         section["only_mutate"] = "\n" + f"{PACKAGE}/{module}"
@@ -126,6 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tests", nargs="+", help="test files (default: the module's in TESTS)")
     parser.add_argument("--results", action="store_true", help="list the last run's survivors")
     parser.add_argument("--keep", action="store_true", help="reuse the copy's mutmut state")
+    parser.add_argument("--timeout", type=int, default=None, metavar="S",
+                        help="pytest-timeout's per-test limit in the copy (default: "
+                        "setup.cfg's; tracing slows a module fixture several times)")
     argv = list(sys.argv[1:] if argv is None else argv)
     extra = argv[argv.index("--") + 1 :] if "--" in argv else []
     args = parser.parse_args(argv[: argv.index("--")] if "--" in argv else argv)
@@ -151,7 +158,10 @@ def main(argv: list[str] | None = None) -> int:
         shutil.rmtree(dest)
     dest.mkdir(parents=True, exist_ok=True)
     top = _copy_tree(dest)
-    _configure(dest, module, [t for t in tests if (ROOT / t).is_file()], top)
+    if args.timeout is not None and args.timeout <= 0:
+        print("mutation: --timeout must be > 0", file=sys.stderr)
+        return 2
+    _configure(dest, module, [t for t in tests if (ROOT / t).is_file()], top, args.timeout)
     run_args = list(extra)
     if not any(a.startswith("--max-children") for a in run_args):
         run_args = ["--max-children", "2", *run_args]
