@@ -107,6 +107,26 @@ def test_cycle_gravity_is_called_with_the_cycle_index(path):
     assert np.array_equal(np.unique(np.concatenate(seen)), np.arange(cycles + 1))
 
 
+def test_final_single_cycle_uses_the_gravity_at_both_of_its_ends(path):
+    """Odd M: the last cycle alone meets eq. (9) with g_{M-1} and g_M. A gravity that jumps by
+    ~1 m/s² per cycle makes any other cycle's g visible: using g_{M-2} would leave
+    (g_{M-1} - g_{M-2}) T²/3 ≈ 8e-5 m in the exact update's position of that cycle."""
+    period, cycles = 0.01, 21
+    c, v, r = truth(np.arange(cycles + 1) * period)
+    step = np.array([1.0, -2.0, 0.5])
+
+    def cycle_gravity(x, m):
+        return spherical(x) + np.multiply.outer(np.asarray(m, dtype=np.float64), step)
+
+    sol = m2.method2(c, r, v, period, spherical, cycle_gravity=cycle_gravity)
+    g = spherical(sol.r_e0) + np.outer(np.arange(cycles + 1), step)
+    res = one_step_residuals(sol.c_b_e0[-2:], sol.v_e0[-2:], sol.r_e0[-2:], sol.dalpha[-1:],
+                             sol.dv[-1:], g[-2:], period)  # fmt: skip
+    # measured: 2.3e-10 m, 0 m/s (round-off of 6e6 m); the g_{M-2} mutant: ~8e-5 m
+    assert res.max_position < 5e-9 and res.max_velocity < 3e-12
+    np.testing.assert_array_equal(sol.r_e0[-1], r[-1])
+
+
 def test_displacement_replaces_the_difference_of_positions(path):
     """With ``displacement`` = exact difference + δ, the even positions reached by eqs. (2)-(4)
     miss the published constraints by exactly δ (the odd cycles are unaffected)."""
