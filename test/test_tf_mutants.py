@@ -76,6 +76,19 @@ def test_datum_without_initial_is_the_trajectory_start():
     np.testing.assert_allclose(d.r0_e, _ecef(lat, lon, ini.altitude_m), rtol=0, atol=1e-6)
 
 
+def test_datum_key_is_the_map_origin_over_the_initial_position():
+    """``tf.datum`` given: the map datum is that point (not ``initial``), in radians and metres,
+    its ECEF position the closed form's."""
+    datum = {"latitude_deg": 46.5, "longitude_deg": 8.25, "altitude_m": 1200.0}
+    scenario = load_scenario(SCENARIOS / "default.yaml", [f"tf.datum={datum}"], duration_s=1.0)
+    assert scenario.initial.latitude_deg != datum["latitude_deg"]
+    d = plan_datum(resolve_plan(scenario))
+    lat, lon = math.radians(46.5), math.radians(8.25)
+    assert abs(d.latitude_rad - lat) < 1e-15 and abs(d.longitude_rad - lon) < 1e-15
+    assert d.altitude_m == 1200.0
+    np.testing.assert_allclose(d.r0_e, _ecef(lat, lon, 1200.0), rtol=0, atol=1e-6)
+
+
 def test_body_tf_at_every_truth_stamp_when_t0_is_off_the_period_grid(tmp_path: Path):
     """A start stamp that is not a multiple of the period: ``map → base_link`` at every
     reference truth stamp all the same (decimation counted from t0)."""
