@@ -5,8 +5,9 @@ A thin rclpy shell around :class:`~strapdown_ros.stages.transfer.TransferStage`,
 default ``/variation/imu_measured``), the master Odometry (``/reference/odom``) and the slave
 truth (``/variation/odom``) in, in batches; serialized ``/transfer/*`` messages out, byte for
 byte the bag's. The stage processes an epoch once every input it needs has arrived, so its
-output does not depend on how DDS interleaves the topics; a missing slave IMU cycle stops the
-node with an error. Filter and outputs: docs/transfer_alignment.md; exit status (0 done,
+output does not depend on how DDS interleaves the topics; a missing slave IMU cycle or a
+non-finite input stops the node with an error line and exit status 1, the outputs published
+before it standing. Filter and outputs: docs/transfer_alignment.md; exit status (0 done,
 1 failure, 2 invalid parameter or scenario): docs/nodes.md.
 """
 
@@ -60,8 +61,12 @@ class TransferNode(StageInputNode):
             by_topic.setdefault(topic, []).append(payload)
         batches = [Batch(topic, self.input_types[topic], header_stamps(payloads), payloads)
                    for topic, payloads in by_topic.items()]  # fmt: skip
-        out = self.stream.feed_batches(batches)
+        out = self.stream.feed_batches(batches)  # after a bad input: the epochs before it
         self._publish((out[k].topic, t, out[k].payloads[i]) for k, i, t in merge_order(out))
+
+    def _failure(self) -> str | None:
+        """The stage's bad input (exit status 1): a missing slave IMU cycle, a NaN."""
+        return self.stream.error
 
     @property
     def input_events(self) -> Any:

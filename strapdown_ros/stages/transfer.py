@@ -10,8 +10,10 @@ filter propagates, applies velocity (and attitude) matching and publishes its st
 
 Epoch m is processed once the slave increments up to m, the master states up to
 ``m − latency + 1`` and the slave truth at m have arrived; the end is known from the plan
-(the variation's last cycle), so ``generate`` needs no flush. Inputs are trusted (they come
-from the chain); a missing message stalls the stage (outputs stop, logged by the counts).
+(the variation's last cycle), so ``generate`` needs no flush. Repeated and older slave IMU
+messages are ignored; a missing slave IMU cycle or a non-finite input the filter would use
+raises :class:`TransferInputError` (the slave INS cannot go on; the outputs up to then stand);
+a missing master or truth message stalls the stage (outputs stop).
 
 Initialization at cycle 0 from the master (docs/transfer_alignment.md §4): ``R̂ = R_r + C_r l̂``,
 ``V̂`` the one-sided difference the variation uses at its first cycle, ``Ĉ_s = C_r M̂`` with the
@@ -62,10 +64,12 @@ from strapdown_ros.messages import (
     vector3_stamped_fields,
 )
 from strapdown_ros.plan.model import TopicPlan
+from strapdown_ros.stages.intake import format_stamp
 
 __all__ = [
     "FLOOR_ATTITUDE",
     "FLOOR_VELOCITY",
+    "TransferInputError",
     "TransferStage",
     "transfer_input_topics",
     "transfer_topic_plans",
@@ -86,6 +90,10 @@ _ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # NED <->
 _MSGTYPES = {"odom": cdr.ODOMETRY, "vel": cdr.TWIST_WITH_COVARIANCE_STAMPED}
 #: Variance given to the angular part of ``vel`` (not estimated there; as ``/aided/vel``).
 NOT_ESTIMATED_VARIANCE = 1e6
+class TransferInputError(ValueError):
+    """An input the slave INS cannot go on from: a missing slave IMU cycle, a non-finite value."""
+
+
 def _require(scenario: Scenario) -> TransferAlignmentSpec:
     return required_section(scenario, "transfer_alignment")
 
@@ -204,6 +212,9 @@ class TransferStage:
         self._nis: list[tuple[int, float, float]] = []
         self.published = dict.fromkeys(self.topics.values(), 0)
         self.rejections = 0
+        #: Why the stage stopped taking input (None: it has not).
+        self.error: str | None = None
+        self._bad_topic: str | None = None
 
     # -- which master cycles are needed ---------------------------------------------------------
 
@@ -216,42 +227,73 @@ class TransferStage:
     # -- input -----------------------------------------------------------------------------------
 
     def feed_batches(self, batches: Sequence[Batch]) -> list[Batch]:
-        """Serialized batches in; the ``/transfer/*`` batches of the epochs now complete out."""
-        spec = self.spec
+        """Serialized batches in; the ``/transfer/*`` batches of the epochs now complete out.
+
+        After a bad input (:attr:`error` set: a missing slave IMU cycle, a non-finite value)
+        the inputs before it are still used, and so are the other topics', but that topic's
+        later input is ignored: no epoch after the bad input completes."""
         for b in batches:
-            if not len(b.payloads):
+            if not len(b.payloads) or b.topic == self._bad_topic:
                 continue
-            if b.topic == spec.imu_topic:
-                f = cdr.deserialize(cdr.IMU, list(b.payloads))
-                inc = imu_increments(f, self.T)
-                cyc = (np.asarray(inc.stamps_ns, dtype=np.int64) - self.t0) // self.T
-                keep = cyc > self._imu_last
-                if np.any(keep):
-                    if cyc[keep][0] != self._imu_last + 1 or np.any(np.diff(cyc[keep]) != 1):
-                        raise ValueError(f"{b.topic}: slave IMU cycles not consecutive")
-                    self._da.append(np.asarray(inc.dalpha)[keep])
-                    self._dv.append(np.asarray(inc.dv)[keep])
-                    self._imu_last = int(cyc[keep][-1])
-            elif b.topic in (spec.master_topic, spec.truth_topic):
-                master = b.topic == spec.master_topic
-                if master and len(b.payloads):
-                    self._master_last = max(self._master_last, int(
-                        (int(np.max(b.stamps_ns)) - self.t0) // self.T))  # fmt: skip
-                b = self._needed(b, master)
-                if not len(b.payloads):
-                    continue
-                st = odometry_state(cdr.deserialize(cdr.ODOMETRY, list(b.payloads)))
-                cyc = (np.asarray(st.stamps_ns, dtype=np.int64) - self.t0) // self.T
-                for i, m in enumerate(cyc.tolist()):
-                    if master:
-                        self._master_last = max(self._master_last, m)
-                        if self._needed_master(m):
-                            self._master[m] = _to_e0(m * self.Ts, st.r_e[i], st.v_e[i],
-                                                     st.c_b_e[i], st.omega_eb_b[i])  # fmt: skip
-                    elif m % self.P == 0:
-                        self._truth[m] = (st.r_e[i], st.v_e[i], st.c_b_e[i])
+            try:
+                if b.topic == self.spec.imu_topic:
+                    self._read_imu(b)
+                elif b.topic in (self.spec.master_topic, self.spec.truth_topic):
+                    self._read_odometry(b, b.topic == self.spec.master_topic)
+            except TransferInputError as exc:
+                if self.error is None:
+                    self.error, self._bad_topic = str(exc), b.topic
         self._process()
         return self._serialize()
+
+    def _read_imu(self, b: Batch) -> None:
+        inc = imu_increments(cdr.deserialize(cdr.IMU, list(b.payloads)), self.T)
+        stamps = np.asarray(inc.stamps_ns, dtype=np.int64)
+        cyc = (stamps - self.t0) // self.T
+        seen = np.maximum.accumulate(np.concatenate([[self._imu_last], cyc[:-1]]))
+        keep = cyc > seen  # repeated and older than one already taken: ignored
+        stamps = stamps[keep]
+        da, dv = np.asarray(inc.dalpha)[keep], np.asarray(inc.dv)[keep]
+        want = self._imu_last + 1 + np.arange(len(stamps))
+        gap = (stamps - self.t0) // self.T != want
+        bad = gap | ~np.isfinite(da).all(axis=1) | ~np.isfinite(dv).all(axis=1)
+        n = int(np.argmax(bad)) if bad.any() else len(stamps)
+        if n:
+            self._da.append(da[:n])
+            self._dv.append(dv[:n])
+            self._imu_last = int(want[n - 1])
+        if n < len(stamps):
+            at = format_stamp(self.t0 + int(want[n]) * self.T)
+            raise TransferInputError(
+                f"{b.topic}: slave IMU cycle {int(want[n])} (stamp {at}) missing, the next "
+                f"is {format_stamp(int(stamps[n]))}; the transfer filter stops" if gap[n] else
+                f"{b.topic}: stamp {at}: NaN or infinity; the transfer filter stops")  # fmt: skip
+
+    def _read_odometry(self, b: Batch, master: bool) -> None:
+        """Master states around the epochs, truth at the epochs; ``_master_last``: the latest
+        master cycle received (the ones not needed count too)."""
+        last = int((int(np.max(b.stamps_ns)) - self.t0) // self.T)
+        b = self._needed(b, master)
+        if len(b.payloads):
+            st = odometry_state(cdr.deserialize(cdr.ODOMETRY, list(b.payloads)))
+            stamps = np.asarray(st.stamps_ns, dtype=np.int64)
+            rows = np.concatenate([st.r_e, st.v_e, st.omega_eb_b, st.c_b_e.reshape(-1, 9)], axis=1)
+            bad = ~np.isfinite(rows).all(axis=1)
+            n = int(np.argmax(bad)) if bad.any() else len(stamps)
+            for i, m in enumerate(((stamps[:n] - self.t0) // self.T).tolist()):
+                if master and self._needed_master(m):
+                    self._master[m] = _to_e0(m * self.Ts, st.r_e[i], st.v_e[i], st.c_b_e[i],
+                                             st.omega_eb_b[i])  # fmt: skip
+                elif not master and m % self.P == 0:
+                    self._truth[m] = (st.r_e[i], st.v_e[i], st.c_b_e[i])
+            if n < len(stamps):
+                if master:
+                    self._master_last = max(self._master_last, int(
+                        (int(stamps[n]) - self.t0) // self.T) - 1)  # fmt: skip
+                raise TransferInputError(f"{b.topic}: stamp {format_stamp(int(stamps[n]))}: "
+                                         "NaN or infinity; the transfer filter stops")  # fmt: skip
+        if master:
+            self._master_last = max(self._master_last, last)
 
     def _needed(self, b: Batch, master: bool) -> Batch:
         """The messages of an Odometry batch the filter uses, by their header stamps (read
