@@ -3,17 +3,15 @@ writes.
 
 The shipped transfer-alignment scenario, shortened to 12 s (the wing rock starts at 10 s),
 live as separate processes over DDS (trajectory, variation, IMU error model, transfer filter,
-recorder; flow-controlled at 5x real time): every ``/transfer/*`` topic must have the same
-messages, byte for byte, with the same log times; every other topic too
+recorder; flow-controlled at 5x real time): every ``/transfer/*`` topic, and every other, must
+have the same messages, byte for byte, in the same order
 (:func:`node_testing.assert_recorded_as_generated`).
 """
 
 from __future__ import annotations
 
-from collections import Counter
 from pathlib import Path
 
-import numpy as np
 import pytest
 from node_testing import assert_recorded_as_generated, generate, run_live
 
@@ -32,12 +30,8 @@ def test_run_equals_generate(tmp_path, ros_env) -> None:
     run_live(SCENARIO, live, dict(ros_env), *common, "--rate-factor", "5", timeout=900)
     log = (tmp_path / "run.logs" / "transfer_node.log").read_text()  # run started it
     assert "Traceback" not in log and "0 measurement(s) rejected" in log, log
-    a, b = read_bag(live, raw=True), read_bag(gen, raw=True)
-    transfer = sorted(t for t in b.topics if t.startswith("/transfer/"))
+    topics = read_bag(gen, raw=True).topics
+    transfer = sorted(t for t in topics if t.startswith("/transfer/") and len(topics[t].payloads))
     assert len(transfer) == 11, transfer  # odom, vel, 3 errors, nees, 4 mounting, nis
-    for topic in transfer:
-        got, want = a.topics[topic], b.topics[topic]
-        assert len(want.payloads) > 0, topic
-        assert Counter(map(bytes, got.payloads)) == Counter(map(bytes, want.payloads)), topic
-        assert np.array_equal(np.sort(got.log_time_ns), np.sort(want.log_time_ns)), topic
+    # every topic, /transfer/* included: the same payloads in the same order
     assert_recorded_as_generated(live, gen)

@@ -15,11 +15,7 @@ invalid parameter or scenario): docs/nodes.md.
 
 from __future__ import annotations
 
-from typing import Any
-
-from strapdown_ros.bag.batches import Batch, merge_order
-from strapdown_ros.nodes._batched import StageInputNode
-from strapdown_ros.nodes.batching import header_stamps
+from strapdown_ros.nodes._batched import TopicsStageNode
 from strapdown_ros.nodes.lifecycle import run_node
 from strapdown_ros.nodes.parameters import declare_scenario
 from strapdown_ros.plan import resolve_plan
@@ -27,7 +23,9 @@ from strapdown_ros.stages.aided import AidedStage, aided_input_topics, aided_top
 from strapdown_ros.stages.intake import format_stamp
 
 NODE_NAME = "aided_node"
-class AidedNode(StageInputNode):
+
+
+class AidedNode(TopicsStageNode):
     """Measured IMU, truth and aiding measurements in; the aided solution out."""
 
     def __init__(self) -> None:
@@ -48,7 +46,6 @@ class AidedNode(StageInputNode):
         types = aided_topic_types(scenario)
         for topic in self.stream.topics.values():
             self.add_output(topic, types[topic])
-        self._input_subs: list[Any] = []
         log.info(
             f"scenario {scenario.path} ({scenario.name}): aided INS on "
             f"{', '.join(self.stream.sensors)}; inputs {', '.join(self.input_types)}; "
@@ -56,23 +53,6 @@ class AidedNode(StageInputNode):
         )
 
     # -- BatchedInputNode hooks -----------------------------------------------------------------
-
-    def _subscribe(self) -> str:
-        for topic, msgtype in self.input_types.items():
-            self._input_subs.append(self.subscribe_input(topic, msgtype, topic, "scenario"))
-        return ", ".join(self.input_types)
-
-    def _process(self, items: list[Any]) -> None:
-        by_topic: dict[str, list[bytes | memoryview]] = {}
-        for topic, payload in items:
-            by_topic.setdefault(topic, []).append(payload)
-        batches = [
-            Batch(topic, self.input_types[topic],
-                  header_stamps(payloads) + self.log_delays[topic], payloads)
-            for topic, payloads in by_topic.items()
-        ]  # fmt: skip
-        out = self.stream.feed_batches(batches)
-        self._publish((out[k].topic, t, out[k].payloads[i]) for k, i, t in merge_order(out))
 
     @property
     def finished(self) -> bool:
@@ -89,13 +69,8 @@ class AidedNode(StageInputNode):
             + ("nothing" if done is None else format_stamp(done)) + ")"
         )
 
-    def _summary(self, wall_s: float, cpu_s: float) -> str:
-        s = self.stream
-        counts = ", ".join(f"{t} {n}" for t, n in s.published.items())
-        return (
-            f"published {counts} in {wall_s:.3f} s of wall time (process CPU {cpu_s:.3f} s); "
-            f"{len(s.rejections)} measurement(s) rejected by the χ² gate"
-        )
+    def _rejected(self) -> int:
+        return len(self.stream.rejections)
 
 
 def main(args: list[str] | None = None) -> int:

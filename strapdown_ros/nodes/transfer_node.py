@@ -15,9 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from strapdown_ros.bag.batches import Batch, merge_order
-from strapdown_ros.nodes._batched import StageInputNode
-from strapdown_ros.nodes.batching import header_stamps
+from strapdown_ros.nodes._batched import TopicsStageNode
 from strapdown_ros.nodes.lifecycle import run_node
 from strapdown_ros.nodes.parameters import declare_scenario
 from strapdown_ros.plan import resolve_plan
@@ -26,7 +24,7 @@ from strapdown_ros.stages.transfer import TransferStage, transfer_input_topics
 NODE_NAME = "transfer_node"
 
 
-class TransferNode(StageInputNode):
+class TransferNode(TopicsStageNode):
     """Slave IMU, master state and slave truth in; the slave solution and mounting out."""
 
     def __init__(self) -> None:
@@ -40,7 +38,6 @@ class TransferNode(StageInputNode):
         self.input_types = {t: plan.topics[t].msgtype for t in transfer_input_topics(scenario)}
         for topic in self.stream.topics.values():
             self.add_output(topic, plan.topics[topic].msgtype)
-        self._input_subs: list[Any] = []
         log.info(
             f"scenario {scenario.path} ({scenario.name}): transfer alignment every "
             f"{self.stream.P} cycles ({self.stream.count} epochs); inputs "
@@ -49,24 +46,6 @@ class TransferNode(StageInputNode):
         )
 
     # -- BatchedInputNode hooks -----------------------------------------------------------------
-
-    def _subscribe(self) -> str:
-        for topic, msgtype in self.input_types.items():
-            self._input_subs.append(self.subscribe_input(topic, msgtype, topic, "scenario"))
-        return ", ".join(self.input_types)
-
-    def _process(self, items: list[Any]) -> None:
-        by_topic: dict[str, list[bytes | memoryview]] = {}
-        for topic, payload in items:
-            by_topic.setdefault(topic, []).append(payload)
-        batches = [Batch(topic, self.input_types[topic], header_stamps(payloads), payloads)
-                   for topic, payloads in by_topic.items()]  # fmt: skip
-        out = self.stream.feed_batches(batches)  # after a bad input: the epochs before it
-        self._publish((out[k].topic, t, out[k].payloads[i]) for k, i, t in merge_order(out))
-
-    def _failure(self) -> str | None:
-        """The stage's bad input (exit status 1): a missing slave IMU cycle, a NaN."""
-        return self.stream.error
 
     @property
     def input_events(self) -> Any:
@@ -86,13 +65,8 @@ class TransferNode(StageInputNode):
             f"{s._master_last})"
         )
 
-    def _summary(self, wall_s: float, cpu_s: float) -> str:
-        s = self.stream
-        counts = ", ".join(f"{t} {n}" for t, n in s.published.items())
-        return (
-            f"published {counts} in {wall_s:.3f} s of wall time (process CPU {cpu_s:.3f} s); "
-            f"{s.rejections} measurement(s) rejected by the χ² gate"
-        )
+    def _rejected(self) -> int:
+        return self.stream.rejections
 
 
 def main(args: list[str] | None = None) -> int:

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from node_testing import generated as generated_bag
 
 from strapdown_ros.bag import cdr
 from strapdown_ros.bag.batches import Batch, header_stamps_ns
-from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.config import load_scenario
 from strapdown_ros.stages.intake import format_stamp
 
@@ -29,12 +29,9 @@ pytestmark = pytest.mark.slow  # generates a bag and compiles the filter's kerne
 
 @pytest.fixture(scope="module")
 def generated(tmp_path_factory):
-    from strapdown_ros.generate import generate_dataset
-
-    scenario = load_scenario(SCENARIO, [], DURATION_S)
+    """The scenario and its ``generate`` bag, read back raw."""
     out = tmp_path_factory.mktemp("transfer_faults") / "bag"
-    generate_dataset(scenario, out)
-    return scenario, read_bag(out, raw=True)
+    return load_scenario(SCENARIO, [], DURATION_S), generated_bag(SCENARIO, out, DURATION_S)
 
 
 def _with_nan(msgtype: str, payload: bytes, field: str) -> bytes:
