@@ -254,6 +254,19 @@ class _Topic:
     last: dict[str, int | None] = field(default_factory=dict)
 
 
+def velocity_fields(stamps: np.ndarray, frame_id: str, rep: Any) -> Any:
+    """The ``P/vel`` messages: the NED velocity of ``rep`` (:class:`~strapdown_ros.core.aided.
+    outputs.Reported`) as ENU with its covariance; the angular part is not estimated
+    (:data:`NOT_ESTIMATED_VARIANCE`)."""
+    k = len(stamps)
+    vcov = np.zeros((k, 6, 6))
+    vcov[:, :3, :3] = _ENU @ rep.vel_cov_ned @ _ENU
+    vcov[:, 3:, 3:] = np.eye(3) * NOT_ESTIMATED_VARIANCE
+    return TwistWithCovarianceStampedFields(
+        stamps_ns=stamps, frame_id=frame_id, linear=rep.v_ned @ _ENU, angular=np.zeros((k, 3)),
+        covariance=vcov.reshape(k, 36))  # fmt: skip
+
+
 class AidedStage:
     """The aided filter on serialized messages (see the module docstring).
 
@@ -797,12 +810,7 @@ class AidedStage:
             stamps, rep.lat, rep.lon, rep.alt, frame, position_covariance=enu_pos.reshape(k, 9),
             position_covariance_type=COVARIANCE_TYPE_KNOWN,
             status=STATUS_FIX if gnss else STATUS_NO_FIX, service=service)  # fmt: skip
-        vcov = np.zeros((k, 6, 6))
-        vcov[:, :3, :3] = _ENU @ rep.vel_cov_ned @ _ENU
-        vcov[:, 3:, 3:] = np.eye(3) * NOT_ESTIMATED_VARIANCE
-        out["vel"] = TwistWithCovarianceStampedFields(
-            stamps_ns=stamps, frame_id=frame, linear=rep.v_ned @ _ENU, angular=np.zeros((k, 3)),
-            covariance=vcov.reshape(k, 36))  # fmt: skip
+        out["vel"] = velocity_fields(stamps, frame, rep)
         have = np.array([int(s) in self._truth for s in stamps])
         for s in stamps[~have]:
             self.events("truth lost", f"{self.truth_topic}: no truth at output stamp "

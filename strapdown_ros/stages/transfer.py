@@ -56,7 +56,6 @@ from strapdown_ros.core.transfer.measurements import (
 )
 from strapdown_ros.logs import Log, quiet
 from strapdown_ros.messages import (
-    TwistWithCovarianceStampedFields,
     imu_increments,
     odometry_fields_from_ecef,
     odometry_state,
@@ -64,6 +63,7 @@ from strapdown_ros.messages import (
     vector3_stamped_fields,
 )
 from strapdown_ros.plan.model import TopicPlan
+from strapdown_ros.stages.aided import velocity_fields
 from strapdown_ros.stages.intake import format_stamp
 
 __all__ = [
@@ -85,11 +85,10 @@ FLOOR_P0 = (1e-3, 1e-3)
 #: Spawn keys of the draws: master errors, mounting error, initial errors.
 STREAM_MASTER, STREAM_MOUNT, STREAM_INITIAL = 20, 21, 22
 _FLU = np.array([1.0, -1.0, -1.0])
-_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # NED <-> ENU
 #: Message type of each output key not a Vector3Stamped.
 _MSGTYPES = {"odom": cdr.ODOMETRY, "vel": cdr.TWIST_WITH_COVARIANCE_STAMPED}
-#: Variance given to the angular part of ``vel`` (not estimated there; as ``/aided/vel``).
-NOT_ESTIMATED_VARIANCE = 1e6
+
+
 class TransferInputError(ValueError):
     """An input the slave INS cannot go on from: a missing slave IMU cycle, a non-finite value."""
 
@@ -474,12 +473,7 @@ class TransferStage:
             stamps, rep.r_e, rep.v_e, rep.c_b_e, rep.omega_eb_b, self.spec.frame_id,
             self.earth_frame, pose_covariance=rep.pose_cov.reshape(k, 36),
             twist_covariance=twist.reshape(k, 36))}  # fmt: skip
-        vcov = np.zeros((k, 6, 6))
-        vcov[:, :3, :3] = _ENU @ rep.vel_cov_ned @ _ENU
-        vcov[:, 3:, 3:] = np.eye(3) * NOT_ESTIMATED_VARIANCE
-        out["vel"] = TwistWithCovarianceStampedFields(
-            stamps_ns=stamps, frame_id=self.spec.frame_id, linear=rep.v_ned @ _ENU,
-            angular=np.zeros((k, 3)), covariance=vcov.reshape(k, 36))  # fmt: skip
+        out["vel"] = velocity_fields(stamps, self.spec.frame_id, rep)  # as /aided/vel
         r_true = np.array([r["truth"][0] for r in rows])
         v_true = np.array([r["truth"][1] for r in rows])
         c_true = np.array([r["truth"][2] for r in rows])
