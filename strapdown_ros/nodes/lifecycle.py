@@ -7,8 +7,10 @@ failure while running, 2 invalid parameter or scenario.
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -45,6 +47,10 @@ __all__ = [
 
 #: Exit statuses of the nodes (those of ``strapdown-sim``).
 EXIT_OK, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+
+#: Seconds the teardown after ``run`` (executor, node, rclpy) may take before the process
+#: leaves without it, with the status it had.
+TEARDOWN_TIMEOUT_S = 15.0
 
 #: Executors a node can run on (parameter ``executor``).
 EXECUTORS = ("events", "single_threaded")
@@ -87,17 +93,40 @@ def _interrupted_summary(node: Any, logger: Any) -> None:
         logger.info(text)
 
 
-def _shut_down(node: Any, executor: Executor | None) -> None:
-    """Remove the node from its executor, destroy it, shut rclpy down (signals ignored)."""
-    # A second SIGINT/SIGTERM/SIGHUP during the clean-up must not end in a traceback.
-    for signum in STOP_SIGNALS:
-        signal.signal(signum, signal.SIG_IGN)
+def _teardown(node: Any, executor: Executor | None) -> None:
+    """Remove the node from its executor, destroy it, shut rclpy down."""
     if executor is not None and node is not None:
         executor.remove_node(node)
         executor.shutdown()
     if node is not None:
         node.destroy_node()
     rclpy.try_shutdown()
+
+
+def _shut_down(node: Any, executor: Executor | None, timeout_s: float) -> bool:
+    """:func:`_teardown` in a daemon thread, for at most ``timeout_s`` (signals ignored).
+
+    Returns False when it did not finish in time: a DDS teardown has been seen to hang on a
+    loaded machine after every message was delivered; the caller then leaves the process.
+    """
+    # A second SIGINT/SIGTERM/SIGHUP during the clean-up must not end in a traceback.
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+    thread = threading.Thread(target=_teardown, args=(node, executor), daemon=True)
+    thread.start()
+    thread.join(timeout_s)
+    return not thread.is_alive()
+
+
+def _leave(name: str, status: int, timeout_s: float) -> None:
+    """End the process now with ``status`` (``os._exit``), saying that the teardown hung."""
+    print(
+        f"{name}: shutdown did not finish within {timeout_s:g} s; exiting with status {status}",
+        file=sys.stderr,
+    )
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
 
 
 def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None = None) -> int:
@@ -107,7 +136,8 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
 
     The executor is chosen by the node parameter ``executor`` (:func:`make_executor`; default
     ``events``). Exit status: 0 done or stopped by SIGINT/SIGTERM/SIGHUP, 1 failure while
-    running, 2 invalid parameter or scenario (the message names it).
+    running, 2 invalid parameter or scenario (the message names it). A teardown that does not
+    finish within :data:`TEARDOWN_TIMEOUT_S` ends the process with that status.
     """
     from strapdown_ros.config import ScenarioError
 
@@ -121,30 +151,36 @@ def run_node(node_factory: Callable[[], Any], name: str, args: list[str] | None 
     logger = rclpy.logging.get_logger(name)
     node = None
     executor: Executor | None = None
+    status = EXIT_FAILURE
     try:
         node = node_factory()
         kind = declare_string(
             node, "executor", "events", "rclpy executor: events | single_threaded"
         )
         executor = make_executor(node, kind)
-        return node.run(executor)
+        status = node.run(executor)
     except ParameterError as exc:
         logger.error(f"invalid parameter: {exc}")
-        return EXIT_INVALID
+        status = EXIT_INVALID
     except ScenarioError as exc:
         logger.error(f"invalid scenario: {exc}")
-        return EXIT_INVALID
+        status = EXIT_INVALID
     except (KeyboardInterrupt, ExternalShutdownException):
         _interrupted_summary(node, logger)
-        return EXIT_OK
+        status = EXIT_OK
     except Exception as exc:
         if not rclpy.ok():  # a signal shut the context down under a publish or a wait
             _interrupted_summary(node, logger)
-            return EXIT_OK
-        logger.error(f"failed: {exc}\n{traceback.format_exc()}")
-        return EXIT_FAILURE
-    finally:
-        _shut_down(node, executor)
+            status = EXIT_OK
+        else:
+            logger.error(f"failed: {exc}\n{traceback.format_exc()}")
+            status = EXIT_FAILURE
+    except BaseException:  # SystemExit and the like: clean up, then let it through
+        _shut_down(node, executor, TEARDOWN_TIMEOUT_S)
+        raise
+    if not _shut_down(node, executor, TEARDOWN_TIMEOUT_S):
+        _leave(name, status, TEARDOWN_TIMEOUT_S)
+    return status
 
 
 @dataclass(frozen=True)
