@@ -36,11 +36,14 @@ SCENARIOS = Path(__file__).resolve().parents[1] / "config" / "scenarios"
 TS = get_typestore(Stores.ROS2_JAZZY)
 
 
-def test_static_variation_is_in_tf_static():
+@pytest.mark.parametrize("duration_s", [1.0, 0.005])
+def test_static_variation_is_in_tf_static(duration_s: float):
     """A variation with constant offsets: ``base_link → variation_imu`` in /tf_static at the
-    lever arm [1, 0.5, 0] m FRD (FLU [1, −0.5, 0]), no rotation, stamped t0."""
-    scenario = load_scenario(SCENARIOS / "savage_test_example.yaml", duration_s=1.0)
+    lever arm [1, 0.5, 0] m FRD (FLU [1, −0.5, 0]), no rotation, stamped t0; also for a run of
+    one cycle (0.005 s at 200 Hz), where the offsets are asked for just one cycle."""
+    scenario = load_scenario(SCENARIOS / "savage_test_example.yaml", duration_s=duration_s)
     plan = resolve_plan(scenario)
+    assert plan.cycles == round(duration_s * 200)
     assert plan.variation_static
     batch = TFStage(plan).static_batch()
     assert batch is not None and len(batch.payloads) == 1
