@@ -15,6 +15,12 @@ messages are ignored; a missing slave IMU cycle or a non-finite input the filter
 raises :class:`TransferInputError` (the slave INS cannot go on; the outputs up to then stand);
 a missing master or truth message stalls the stage (outputs stop).
 
+On a scanning platform (a ``sweep``, docs/transfer_alignment.md §5) the stage simulates the
+slave's resolver: the platform's true angle from the offsets the variation stage used (the
+scenario's :meth:`~strapdown_ros.core.offsets.OffsetModel.history`), plus the configured bias
+and white noise; the filter's nominal ``C_Bs^Br`` is ``M̂ Ĉ_scan(θ̃)`` and the carried offset
+``C_r (l̂ + M̂ Ĉ_scan d)``.
+
 Initialization at cycle 0 from the master (docs/transfer_alignment.md §4): ``R̂ = R_r + C_r l̂``,
 ``V̂`` the one-sided difference the variation uses at its first cycle, ``Ĉ_s = C_r M̂`` with the
 nominal mounting ``M̂ = exp([μ0×]) M``; so the initial attitude error is ``φ0 = C_r μ0`` (plus the

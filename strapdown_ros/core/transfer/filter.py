@@ -5,7 +5,9 @@ filter's ``δR, δV, φ`` and gyro/accelerometer biases (the layout of
 :func:`strapdown_ros.core.aided.model.build_model`, its IMU white-noise PSDs and bias random
 walks, and its Gauss–Markov bias and scale-factor states when the slave's error model has those
 terms), then the mounting misalignment ``μ`` (3, Br axes, random constant or random walk) and
-optionally the lever-arm error ``δl`` (3, Br FRD, random constant).
+optionally the lever-arm error ``δl`` (3, Br FRD, random constant). On a scanning platform the
+matching measurements carry the resolver's ``Ĉ_scan`` and the displacement (:class:`Platform`,
+docs/transfer_alignment.md §5); μ stays the zero-scan mounting's error.
 
 The inertial part, the error dynamics, the Van Loan discretization and the Joseph update are
 the aided filter's own compiled functions (docs/theory/aided_ins.md §4, §6):
