@@ -28,7 +28,7 @@ BASE = "85f039d"
 DURATION_CAP_S = "30"
 SCENARIOS = sorted((REPO / "config" / "scenarios").glob("*.yaml"))
 #: Shipped scenarios added after BASE (nothing to compare them with; their own tests check them).
-NEW_SINCE_BASE = ("transfer_alignment",)
+NEW_SINCE_BASE = ("transfer_alignment", "transfer_alignment_scan")
 _AIDED = ("odom", "fix", "vel", "error/position", "error/velocity", "error/attitude", "nees",
           "bias/gyro", "bias/accel", "bias/gyro_sigma", "bias/accel_sigma")
 _PER_SENSOR = ("innovation", "nis")

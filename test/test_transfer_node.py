@@ -1,7 +1,8 @@
 """transfer_node live (``strapdown-sim run``) records the ``/transfer/*`` topics ``generate``
 writes.
 
-The shipped transfer-alignment scenario, shortened to 12 s (the wing rock starts at 10 s),
+The shipped transfer-alignment scenarios (a fixed pylon; a scanning platform whose resolver the
+stage simulates, in the node as in ``generate``), shortened to 12 s (the wing rock starts at 10 s),
 live as separate processes over DDS (trajectory, variation, IMU error model, transfer filter,
 recorder; flow-controlled at 5x real time): every ``/transfer/*`` topic, and every other, must
 have the same messages, byte for byte, in the same order
@@ -18,16 +19,18 @@ from node_testing import assert_recorded_as_generated, generate, run_live
 from strapdown_ros.bag.reader import read_bag
 
 REPO = Path(__file__).resolve().parent.parent
-SCENARIO = REPO / "config" / "scenarios" / "transfer_alignment.yaml"
+SCENARIOS = [REPO / "config" / "scenarios" / f"{name}.yaml"
+             for name in ("transfer_alignment", "transfer_alignment_scan")]  # fmt: skip
 
 pytestmark = pytest.mark.slow
 
 
-def test_run_equals_generate(tmp_path, ros_env) -> None:
+@pytest.mark.parametrize("scenario", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+def test_run_equals_generate(tmp_path, ros_env, scenario: Path) -> None:
     gen, live = tmp_path / "generate", tmp_path / "run"
     common = ["--duration", "12"]
-    generate(SCENARIO, gen, *common, timeout=900)
-    run_live(SCENARIO, live, dict(ros_env), *common, "--rate-factor", "5", timeout=900)
+    generate(scenario, gen, *common, timeout=900)
+    run_live(scenario, live, dict(ros_env), *common, "--rate-factor", "5", timeout=900)
     log = (tmp_path / "run.logs" / "transfer_node.log").read_text()  # run started it
     assert "Traceback" not in log and "0 measurement(s) rejected" in log, log
     topics = read_bag(gen, raw=True).topics

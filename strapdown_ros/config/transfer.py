@@ -1,9 +1,9 @@
 """The ``transfer_alignment`` section: the variation IMU's INS aided by the reference's state.
 
 :class:`TransferAlignmentSpec` holds the keys with their limits; :func:`check_transfer` the
-rules that need the rest of the scenario (a fixed-mount variation, the slave IMU the variation
-IMU or its ``imu_errors`` output, periods on the IMU grid). The filter and its equations:
-docs/transfer_alignment.md.
+rules that need the rest of the scenario (a fixed mount or a sweeping platform, the slave IMU
+the variation IMU or its ``imu_errors`` output, periods on the IMU grid). The filter and its
+equations: docs/transfer_alignment.md.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from strapdown_ros.config.base import (
 __all__ = [
     "TRANSFER_OUTPUTS",
     "MasterErrorSpec",
+    "ResolverSpec",
     "TransferAlignmentSpec",
     "TransferTuningSpec",
     "check_transfer",
@@ -69,6 +70,20 @@ class MasterErrorSpec(Model):
     seed: Annotated[StrictInt, Field(ge=0)] = 1
 
 
+class ResolverSpec(Model):
+    """The scan-angle resolver of a scanning platform (simulated inside the stage).
+
+    The slave reads the platform's angle θ (the Appendix-D-smoothed sweep angle the generator
+    used) as ``θ̃ = θ + bias_deg + n``: ``bias_deg`` a constant error (a value, not a σ; about
+    the scan axis it is indistinguishable from a mounting error, docs/transfer_alignment.md §5),
+    ``noise_deg`` the σ of ``n``, white, one independent draw per IMU cycle from ``seed``.
+    """
+
+    bias_deg: Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-30.0, le=30.0)] = 0.0
+    noise_deg: Annotated[NonNegative, Field(le=10.0)] = 0.0
+    seed: Annotated[StrictInt, Field(ge=0)] = 3
+
+
 class TransferTuningSpec(Model):
     """What the filter is told beyond the master's white noise.
 
@@ -91,6 +106,7 @@ class TransferAlignmentSpec(Model):
     The slave's nominal mounting is the scenario's ``variation.mounting_rph_deg`` rotated by
     ``mounting_error_deg`` (or, when that is null, by a draw of ``mounting_sigma_deg`` from
     ``seed``); its nominal lever arm is ``variation.lever_arm_m`` plus ``lever_arm_error_m``.
+    On a scanning platform (a ``sweep``) the slave reads the scan angle from a ``resolver``.
     """
 
     enabled: StrictBool = True
@@ -112,6 +128,7 @@ class TransferAlignmentSpec(Model):
     seed: Annotated[StrictInt, Field(ge=0)] = 0
     gate_probability: Annotated[float, Field(gt=0.0, le=1.0, strict=True)] = 1.0
     master: MasterErrorSpec = Field(default_factory=MasterErrorSpec)
+    resolver: ResolverSpec = Field(default_factory=ResolverSpec)
     tuning: TransferTuningSpec = Field(default_factory=TransferTuningSpec)
     frame_id: str = "transfer"
     topic_prefix: str = "/transfer"
@@ -149,6 +166,29 @@ def transfer_spec(scenario: Any) -> TransferAlignmentSpec | None:
     return enabled_section(scenario, "transfer_alignment")
 
 
+def _check_platform(key: str, spec: TransferAlignmentSpec, variation: Any) -> None:
+    """On a platform (a scan or a displacement) the scan must be a sweep (one angle about a
+    fixed axis: what the resolver reads) and the velocity transport the central difference;
+    resolver errors need a scan."""
+    scan = variation.scan
+    if scan is None and (spec.resolver.bias_deg != 0.0 or spec.resolver.noise_deg != 0.0):
+        raise ScenarioError(f"{key}.resolver", "resolver errors need a scanning platform "
+                            "(variation.scan) to read")  # fmt: skip
+    if scan is None and not any(v != 0.0 for v in variation.displacement_m):
+        return
+    if scan is not None and scan.kind != "sweep":
+        raise ScenarioError(
+            f"{key}", f"variation.scan kind {scan.kind!r} is not supported: the slave's resolver "
+            "reads one angle about a fixed axis (kind: sweep)",
+        )  # fmt: skip
+    if spec.velocity_transport != "central_difference":
+        raise ScenarioError(
+            f"{key}.velocity_transport", "a platform (variation.scan or displacement_m) needs "
+            "central_difference (the carried offset turns with the scan and the mounting "
+            "estimate: eq. (10) on the whole offset)",
+        )  # fmt: skip
+
+
 def check_transfer(scenario: Any) -> None:
     """Cross-field rules of ``transfer_alignment`` (called by the scenario's validation with
     itself).
@@ -170,16 +210,7 @@ def check_transfer(scenario: Any) -> None:
     period_ns = scenario.period_ns
     if variation is None:
         raise ScenarioError(key, "needs a variation section (the slave IMU is the variation IMU)")
-    if variation.scan is not None:
-        raise ScenarioError(
-            f"{key}", "a scanning platform (variation.scan) is not supported yet: the slave "
-            "would need the scan angle as a resolver reading (docs/transfer_alignment.md)",
-        )  # fmt: skip
-    if any(v != 0.0 for v in variation.displacement_m):
-        raise ScenarioError(
-            f"{key}", "variation.displacement_m must be 0 (a fixed mount: the lever arm alone "
-            "places the slave)",
-        )  # fmt: skip
+    _check_platform(key, spec, variation)
     if variation.method != 2:
         raise ScenarioError(f"{key}", "needs variation.method: 2 (velocity constraint (10))")
     slave = topics["variation_imu"]

@@ -11,7 +11,11 @@ A transfer-alignment filter is found by its outputs below a prefix ``P`` (defaul
   y: attitude matching, 3 degrees of freedom each);
 * the true mounting ``M = C_Bvar^Bref = C_E^Bref C_Bvar^E`` (body FRD) from ``/reference/odom``
   and ``/variation/odom`` at the filter's stamps: constant for a fixed mount (the bending moves
-  the lever arm, not the axes); its largest rotation from the first one is reported;
+  the lever arm, not the axes); its largest rotation from the first one is reported. On a
+  scanning platform the relative attitude is ``C_mount C_scan(t)`` (Savage 2020 eq. (5),
+  ``C_scan`` smoothed by Appendix D): the scan is removed with the offsets the bag's metadata
+  records (``variation.offsets``, :func:`remove_scan`), leaving the zero-scan mounting
+  ``C_mount`` the filter estimates; without that record the mounting part is omitted;
 * the mounting error ``μ = rotvec(M̂ Mᵀ)`` (reference body axes, FLU as ``P/mounting/error``),
   ``M̂`` from the published roll, pitch, yaw of ``P/mounting/estimate``; σ per axis from
   ``P/mounting/sigma`` (the published diagonal: the 3-dof NEES needs the full block, so the
@@ -22,6 +26,7 @@ A transfer-alignment filter is found by its outputs below a prefix ``P`` (defaul
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,6 +44,7 @@ from strapdown_ros.core.rotations import (
 )
 from strapdown_ros.core.transfer.convergence import alignment_time
 from strapdown_ros.messages import odometry_state
+from strapdown_ros.plan.metadata import VARIATION_OFFSETS
 from strapdown_ros.report.aided import (
     ODOMETRY,
     VECTOR3,
@@ -56,6 +62,7 @@ __all__ = [
     "THRESHOLDS",
     "TransferResult",
     "plot_transfer_mounting",
+    "remove_scan",
     "transfer_data",
     "transfer_prefixes",
     "transfer_table",
@@ -66,6 +73,8 @@ SLAVE_TRUTH = "/variation/odom"
 MASTER_TRUTH = "/reference/odom"
 #: Alignment-time thresholds (rad) and their names.
 THRESHOLDS = ((1e-3, "1 mrad"), (1e-4, "0.1 mrad"))
+#: A relative attitude of the truths turning more than this (rad) is a scan, not round-off.
+SCAN_TURN_RAD = 1e-9
 _FLU = np.array([1.0, -1.0, -1.0])
 
 
@@ -94,6 +103,7 @@ class TransferResult:
     error: F64  #: (K, 3) rotvec(M̂ Mᵀ), reference body FLU (rad)
     sigma: F64  #: (K, 3) published σ of the same components (rad)
     published_error: F64 | None  #: (K, 3) the filter's ``P/mounting/error`` at the same stamps
+    scan_removed: bool = False  #: the truths' relative attitude had a scan, removed (zero-scan)
 
     def yaw_normalized(self) -> F64:
         """(K,) ``μ_z² / σ_z²`` (one degree of freedom)."""
@@ -159,6 +169,15 @@ def transfer_data(contents: BagContents, prefix: str, start_ns: int) -> Transfer
         return v[np.searchsorted(st, stamps)]
 
     m_true = np.swapaxes(at(ref.stamps_ns, ref.c_b_e), -1, -2) @ at(var.stamps_ns, var.c_b_e)
+    offsets = contents.custom_data.get(VARIATION_OFFSETS)
+    if offsets is not None:
+        m_true = remove_scan(m_true, stamps, offsets)
+    else:
+        turn = float(np.max(rotation_angle(m_true @ np.swapaxes(m_true[:1], -1, -2))))
+        if turn > SCAN_TURN_RAD:
+            return (f"the truths' relative attitude turns by {turn:.3g} rad (a scanning "
+                    f"platform) and the bag's metadata has no `{VARIATION_OFFSETS}` to remove "
+                    "the scan with: the true zero-scan mounting is unknown")  # fmt: skip
     rph = at(*est)
     m_hat = dcm_from_euler(rph[:, 0], rph[:, 1], rph[:, 2])
     mu = rotvec_from_dcm(m_hat @ np.swapaxes(m_true[:1], -1, -2)) * _FLU
@@ -170,7 +189,26 @@ def transfer_data(contents: BagContents, prefix: str, start_ns: int) -> Transfer
         published[a] = pub[1][b]
     spread = float(np.max(rotation_angle(m_true @ np.swapaxes(m_true[:1], -1, -2))))
     return TransferResult(prefix, slave, (stamps - start_ns) * 1e-9, m_true[0], spread, mu,
-                          at(*sig), published)  # fmt: skip
+                          at(*sig), published, offsets is not None)  # fmt: skip
+
+
+def remove_scan(m_true: F64, stamps_ns: np.ndarray, offsets_json: str) -> F64:
+    """``C_rel C_scanᵀ`` (K, 3, 3): the zero-scan mounting ``C_mount`` from the truths' relative
+    attitude ``C_rel = C_mount C_scan`` at ``stamps_ns``.
+
+    ``C_scan = C_mountᵀ C_Bvar^Bref`` on the cycle grid, rebuilt from the recorded ``variation``
+    section (:meth:`~strapdown_ros.core.offsets.OffsetModel.history`, the generator's offsets,
+    Appendix D smoothing included); cycle ``m = (stamp − start_time_ns) / period_ns``.
+    """
+    from strapdown_ros.config.variation import VariationSpec
+
+    rec = json.loads(offsets_json)
+    model = VariationSpec.model_validate(rec["variation"]).offset_model()
+    cycles = (np.asarray(stamps_ns, dtype=np.int64) - int(rec["start_time_ns"])) // int(
+        rec["period_ns"])  # fmt: skip
+    hist = model.history(int(rec["period_ns"]) * 1e-9, int(cycles.max()))
+    c_scan = np.swapaxes(model.mount, -1, -2) @ hist.c_bvar_bref[cycles]
+    return m_true @ np.swapaxes(c_scan, -1, -2)
 
 
 # ------------------------------------------------------------------------------------------
@@ -186,8 +224,10 @@ def transfer_table(r: TransferResult) -> list[str]:
     """Markdown lines: the true mounting, the mounting error against ±3σ, the yaw's normalized
     square against χ²(1), the alignment times."""
     roll, pitch, yaw = (np.degrees(float(x)) for x in euler_from_dcm(r.mounting_true))
-    lines = [f"True mounting `C_Bvar^Bref` from `{MASTER_TRUTH}` and `{SLAVE_TRUTH}`: roll "
-             f"{roll:.6f}°, pitch {pitch:.6f}°, yaw {yaw:.6f}° (constant to "
+    scan = (f", the scan removed with the bag's `{VARIATION_OFFSETS}`: the zero-scan mounting"
+            if r.scan_removed else "")  # fmt: skip
+    lines = [f"True mounting `C_Bvar^Bref` from `{MASTER_TRUTH}` and `{SLAVE_TRUTH}`{scan}: "
+             f"roll {roll:.6f}°, pitch {pitch:.6f}°, yaw {yaw:.6f}° (constant to "
              f"{_e(r.mounting_spread)} rad over the {r.t.size} epochs).", ""]  # fmt: skip
     inside = r.inside_3sigma()
     head = "| mounting error | max \\|μ\\| | final μ (t = {:.3f} s) | final σ | inside ±3σ | unit |"

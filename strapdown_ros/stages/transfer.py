@@ -15,6 +15,12 @@ messages are ignored; a missing slave IMU cycle or a non-finite input the filter
 raises :class:`TransferInputError` (the slave INS cannot go on; the outputs up to then stand);
 a missing master or truth message stalls the stage (outputs stop).
 
+On a scanning platform (a ``sweep``, docs/transfer_alignment.md §5) the stage simulates the
+slave's resolver: the platform's true angle from the offsets the variation stage used (the
+scenario's :meth:`~strapdown_ros.core.offsets.OffsetModel.history`), plus the configured bias
+and white noise; the filter's nominal ``C_Bs^Br`` is ``M̂ Ĉ_scan(θ̃)`` and the carried offset
+``C_r (l̂ + M̂ Ĉ_scan d)``.
+
 Initialization at cycle 0 from the master (docs/transfer_alignment.md §4): ``R̂ = R_r + C_r l̂``,
 ``V̂`` the one-sided difference the variation uses at its first cycle, ``Ĉ_s = C_r M̂`` with the
 nominal mounting ``M̂ = exp([μ0×]) M``; so the initial attitude error is ``φ0 = C_r μ0`` (plus the
@@ -47,10 +53,16 @@ from strapdown_ros.core.navigation.errors import (
     position_error_ned,
     velocity_error_ned,
 )
-from strapdown_ros.core.rotations import dcm_from_rotvec, euler_from_dcm, rotvec_from_dcm
-from strapdown_ros.core.transfer.filter import TransferFilter, TransferLayout
+from strapdown_ros.core.offsets import OffsetModel, SweepScan
+from strapdown_ros.core.rotations import dcm_from_rotvec, euler_from_dcm, rotvec_from_dcm, skew
+from strapdown_ros.core.transfer.filter import Platform, TransferFilter, TransferLayout
 from strapdown_ros.core.transfer.measurements import (
     carried_position,
+    platform_offset,
+    resolver_noise_attitude,
+    resolver_noise_velocity,
+    scan_angle,
+    scan_dcm,
     start_velocity,
     transport_matrix,
 )
@@ -82,8 +94,8 @@ FLOOR_VELOCITY = 1e-14
 FLOOR_ATTITUDE = 1e-16
 #: σ floors of P0 for the position and velocity when their configured σ is 0 (m, m/s).
 FLOOR_P0 = (1e-3, 1e-3)
-#: Spawn keys of the draws: master errors, mounting error, initial errors.
-STREAM_MASTER, STREAM_MOUNT, STREAM_INITIAL = 20, 21, 22
+#: Spawn keys of the draws: master errors, mounting error, initial errors, resolver noise.
+STREAM_MASTER, STREAM_MOUNT, STREAM_INITIAL, STREAM_RESOLVER = 20, 21, 22, 23
 _FLU = np.array([1.0, -1.0, -1.0])
 #: Message type of each output key not a Vector3Stamped.
 _MSGTYPES = {"odom": cdr.ODOMETRY, "vel": cdr.TWIST_WITH_COVARIANCE_STAMPED}
@@ -152,7 +164,8 @@ class TransferStage:
     Parameters
     ----------
     scenario : Scenario
-        With an enabled ``transfer_alignment`` section and a fixed-mount ``variation``.
+        With an enabled ``transfer_alignment`` section; its ``variation`` a fixed mount or a
+        sweeping platform (the scenario's rules).
     last_cycle : int
         Last cycle of the slave streams (the plan's variation cycles).
     """
@@ -173,6 +186,14 @@ class TransferStage:
         self.lever_nominal = np.asarray(om.lever_arm, dtype=np.float64) + np.asarray(
             spec.lever_arm_error_m)  # fmt: skip
         self.lever_true = np.asarray(om.lever_arm, dtype=np.float64)
+        self.displacement = np.asarray(om.displacement, dtype=np.float64)
+        #: a platform: a scan or a displacement on it (docs/transfer_alignment.md §5)
+        self.platform = om.scan is not None or bool(np.any(self.displacement != 0.0))
+        self.scan_axis = np.zeros(3)
+        self.resolver: F64 | None = None  # θ̃ at cycles 0..last_cycle + 1 (rad)
+        self.resolver_sigma = 0.0  # σ of the reading noise (rad)
+        if om.scan is not None:
+            self._simulate_resolver(om, last_cycle)
         # the slave IMU's error model (the filter's matched Q and P0 of the biases)
         params = ImuErrorParameters.perfect()
         slave_errors = sc.imu_errors_of(spec.imu_topic)
@@ -214,6 +235,30 @@ class TransferStage:
         #: Why the stage stopped taking input (None: it has not).
         self.error: str | None = None
         self._bad_topic: str | None = None
+
+    def _simulate_resolver(self, om: OffsetModel, last_cycle: int) -> None:
+        """The resolver's readings ``θ̃ = θ + b + n`` at cycles 0..last_cycle + 1.
+
+        θ: the platform's true angle, from the offsets the variation stage used
+        (:meth:`~strapdown_ros.core.offsets.OffsetModel.history`: ``C_mount C_scan`` smoothed
+        by Appendix D) by :func:`scan_angle`; b the configured bias, n white (σ, seed)."""
+        if not isinstance(om.scan, SweepScan):  # refused by the scenario's rules
+            raise ValueError("transfer_alignment: only a sweep scan has a resolver model")
+        self.scan_axis = np.asarray(om.scan.axis, dtype=np.float64)
+        hist = om.history(self.Ts, last_cycle + 1)
+        theta = scan_angle(hist.c_bvar_bref, om.mount, self.scan_axis)
+        rs = self.spec.resolver
+        gen = np.random.Generator(np.random.PCG64(np.random.SeedSequence(
+            rs.seed, spawn_key=(STREAM_RESOLVER,))))  # fmt: skip
+        noise = gen.standard_normal(theta.size) * np.radians(rs.noise_deg)
+        self.resolver = theta + np.radians(rs.bias_deg) + noise
+        self.resolver_sigma = float(np.radians(rs.noise_deg))
+
+    def _scan(self, m: int) -> F64:
+        """``Ĉ_scan`` at slave cycle m from the resolver's reading (identity without a scan)."""
+        if self.resolver is None:
+            return np.eye(3)
+        return scan_dcm(self.scan_axis, float(self.resolver[m]))
 
     # -- which master cycles are needed ---------------------------------------------------------
 
@@ -369,15 +414,24 @@ class TransferStage:
         s_p = spec.initial_sigma_position_m
         s_v = spec.initial_sigma_velocity_mps
         e = self._rng_initial.standard_normal(6)
-        r0 = carried_position(r, c, lever) + e[:3] * s_p
-        if spec.velocity_transport == "central_difference":
+        scans = [self._scan(j) for j in range(3)]
+        w3 = [platform_offset(self.mount_nominal, cs, self.displacement) for cs in scans]
+        if self.platform:  # S_j = C_r,j (l̂ + M̂ Ĉ_scan,j d) (eq. (7))
+            r0 = carried_position(r, c, lever + w3[0]) + e[:3] * s_p
+            v0 = start_velocity(c, c1, c2, v, lever, self.Ts, (w3[0], w3[1], w3[2]))
+            d0 = (-3.0 * c + 4.0 * c1 - c2) / (2.0 * self.Ts)
+        elif spec.velocity_transport == "central_difference":
+            r0 = carried_position(r, c, lever) + e[:3] * s_p
             v0 = start_velocity(c, c1, c2, v, lever, self.Ts)
             d0 = (-3.0 * c + 4.0 * c1 - c2) / (2.0 * self.Ts)
         else:
+            r0 = carried_position(r, c, lever) + e[:3] * s_p
             d0 = transport_matrix("rate", c, c, c, w, self.Ts)
             v0 = v + d0 @ lever
         v0 = v0 + e[3:] * s_v
         chat = c0 @ self.mount_nominal
+        if self.platform:
+            chat = chat @ scans[0]
         # P0 = A Σ Aᵀ: independent parts, then the correlations of the start from the master
         n = lay.n
         sig = np.zeros(n)
@@ -391,16 +445,35 @@ class TransferStage:
         sig[lay.i_mu : lay.i_mu + 3] = np.radians(spec.mounting_sigma_deg)
         a = np.eye(n)
         a[6:9, lay.i_mu : lay.i_mu + 3] = c
+        if self.platform:  # ∂S_j/∂μ = −C_r,j [w_j×]
+            ds = [-cj @ skew(wj) for cj, wj in zip((c, c1, c2), w3, strict=True)]
+            a[0:3, lay.i_mu : lay.i_mu + 3] = ds[0]
+            a[3:6, lay.i_mu : lay.i_mu + 3] = (-3.0 * ds[0] + 4.0 * ds[1] - ds[2]) / (2 * self.Ts)
         if lay.i_l >= 0:
             sig[lay.i_l : lay.i_l + 3] = spec.lever_arm_sigma_m
             a[0:3, lay.i_l : lay.i_l + 3] = c
             a[3:6, lay.i_l : lay.i_l + 3] = d0
         p0 = a @ np.diag(sig**2) @ a.T
+        if self.resolver is not None and self.resolver_sigma > 0.0:
+            p0 += self._resolver_p0(n, (c, c1, c2), scans)
         q_mu = spec.tuning.mounting_random_walk**2
         self.filter = TransferFilter(lay, self.T, str(self.scenario.gravity_model), r0, v0,
                                      chat, self.mount_nominal, lever, 0.5 * (p0 + p0.T),
                                      q_mu)  # fmt: skip
         self.info(f"transfer_alignment: slave INS starts at cycle 0 ({n} states)")
+
+    def _resolver_p0(self, n: int, cr: tuple[F64, F64, F64], scans: list[F64]) -> F64:
+        """P0's part from the resolver noise of readings 0, 1, 2 (σ² G Gᵀ): the start carries
+        ``g_j ε_j`` (``g_j = C_r,j M̂ Ĉ_scan,j (a × d)``) into R̂ (j = 0) and V̂ (the one-sided
+        difference) and ``C_r M̂ a ε_0`` into the slave's attitude."""
+        ad = np.cross(self.scan_axis, self.displacement)
+        mh = self.mount_nominal
+        g = [cj @ (mh @ (cs @ ad)) for cj, cs in zip(cr, scans, strict=True)]
+        big = np.zeros((n, 3))
+        big[0:3, 0] = g[0]
+        big[3:6] = np.column_stack([-3.0 * g[0], 4.0 * g[1], -g[2]]) / (2.0 * self.Ts)
+        big[6:9, 0] = cr[0] @ (mh @ self.scan_axis)
+        return self.resolver_sigma**2 * (big @ big.T)
 
     def _step(self, m: int) -> None:
         f = self.filter
@@ -417,10 +490,23 @@ class TransferStage:
             from scipy.stats import chi2
 
             gate = float(chi2.ppf(self.spec.gate_probability, 3))
-        rv = f.update_velocity(v, d, self._r_velocity(cne0), gate)
+        r_v = self._r_velocity(cne0)
+        plat = None
+        if self.platform:
+            plat = Platform(c_prev, c_next, self._scan(m - 1), self._scan(m + 1), self.displacement)
+            if self.resolver is not None and self.resolver_sigma > 0.0:
+                r_v = r_v + resolver_noise_velocity(c_prev, c_next, f.mount, plat.scan_prev,
+                                                    plat.scan_next, self.scan_axis,
+                                                    self.displacement, self.resolver_sigma,
+                                                    self.Ts)  # fmt: skip
+        rv = f.update_velocity(v, d, r_v, gate, plat)
         nis_a = 0.0
         if "attitude" in self.spec.measurements:
-            ra = f.update_attitude(c, self._r_attitude(c), gate)
+            r_a = self._r_attitude(c)
+            if self.resolver is not None and self.resolver_sigma > 0.0:
+                r_a = r_a + resolver_noise_attitude(c, f.mount, self.scan_axis,
+                                                    self.resolver_sigma)  # fmt: skip
+            ra = f.update_attitude(c, r_a, gate, self._scan(m) if self.platform else None)
             nis_a = ra.nis
             self.rejections += not ra.accepted
         self.rejections += not rv.accepted

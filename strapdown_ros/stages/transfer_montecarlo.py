@@ -1,4 +1,4 @@
-"""Transfer-alignment campaigns: alignment time, consistency, bending sensitivity.
+"""Transfer-alignment campaigns: alignment time, consistency, bending and resolver sensitivity.
 
 The reference and variation streams of a scenario do not depend on the run's seeds, so they are
 made once (:func:`base_batches`: ``generate``'s trajectory and variation stages, serialized as
@@ -13,6 +13,7 @@ Command line (docs/transfer_alignment.md)::
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --runs 50 [--straight] [--save DIR]
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --summarize DIR [DIR ...]
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --bending 0 1 2 5 10
+    python -m strapdown_ros.stages.transfer_montecarlo SCAN_SCENARIO --resolver 0:0 0.1:0.01
 """
 
 from __future__ import annotations
@@ -250,6 +251,68 @@ def bending_table(doc: dict[str, Any], amplitudes_mm: Sequence[float], directory
     return lines
 
 
+def _resolver_case(text: str) -> tuple[float, float]:
+    """``BIAS:NOISE`` (deg) of ``--resolver``."""
+    bias, _, noise = text.partition(":")
+    return float(bias), float(noise or 0.0)
+
+
+def resolver_table(doc: dict[str, Any], cases: Sequence[tuple[float, float]], runs: int,
+                   directory: Path, duration: float | None,
+                   base_seed: int = 0) -> list[str]:  # fmt: skip
+    """The mounting error, σ and NEES against the resolver's bias and noise (a scan scenario).
+
+    The campaign's conditions (the slave IMU's modelled terms, the master's white noise, no
+    bending, the mounting error drawn per run) plus a resolver of bias b and noise σ per case,
+    ``runs`` runs each (seeds as :func:`campaign`, the resolver's the filter's seed + 1). The
+    mounting error is against ``C_mount`` (zero scan): a bias is a mounting error ``−b M a``
+    (docs/transfer_alignment.md §5), shown beside; NEES over the epochs after 30 s against the
+    95 % χ² interval of the run average.
+    """
+    d = modelled_only(doc)
+    d["variation"].pop("bending", None)
+    ta = d["transfer_alignment"]
+    ta["mounting_error_deg"] = None
+    ta["master"] = {k: v for k, v in (ta.get("master") or {}).items()
+                    if k in ("velocity_noise_mps", "attitude_noise_deg")}  # fmt: skip
+    ta["tuning"] = {}
+    lines = ["| resolver bias, noise (deg) | mean final mounting error x, y, z (µrad) | "
+             "−b·(M a) x, y, z (µrad) | rms about it x, y, z (µrad) | final σ x, y, z (µrad) | "
+             "mounting NEES: mean, inside | slave attitude NEES: mean, inside |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    base: tuple[list[Batch], int] | None = None
+    for bias, noise in cases:
+        results = []
+        for k in range(runs):
+            seeds = _seeded(d, k, base_seed)
+            rseed = int(seeds[1].split("=")[1]) + 1  # a stream of its own
+            res = f"transfer_alignment.resolver={{bias_deg: {bias}, noise_deg: {noise}, " \
+                  f"seed: {rseed}}}"  # fmt: skip
+            sc = _scenario(d, [*seeds, res], duration, directory)
+            if base is None:
+                base = base_batches(sc)
+            results.append(decode_result(run_transfer(sc, *base), sc))
+        assert sc.variation is not None
+        om = sc.variation.offset_model()
+        axis = np.asarray(getattr(om.scan, "axis", np.zeros(3)))
+        expect = -np.radians(bias) * (om.mount @ axis) * np.array([1.0, -1.0, -1.0]) + 0.0  # FLU
+        final = np.array([r.mounting[-1] for r in results])
+        sig = np.array([r.mounting_sigma[-1] for r in results]).mean(axis=0)
+        rms = np.sqrt(np.mean((final - expect) ** 2, axis=0))
+        sel = results[0].t >= 30.0
+        mn = fraction_inside(np.stack([r.mounting_nees[sel] for r in results]), 3)
+        an = fraction_inside(np.stack([r.nees[sel, 2] for r in results]), 3)
+
+        def us(v: np.ndarray) -> str:
+            return ", ".join(f"{1e6 * x:.3g}" for x in v)
+
+        lines.append(f"| {bias:g}, {noise:g} | {us(final.mean(axis=0))} | {us(expect)} | "
+                     f"{us(rms)} | {us(sig)} | {mn.mean:.3g}, {100 * mn.fraction:.0f} % | "
+                     f"{an.mean:.3g}, {100 * an.fraction:.0f} % |")  # fmt: skip
+        print(f"resolver {bias:g}, {noise:g} done", file=sys.stderr, flush=True)
+    return lines
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     import tempfile
@@ -262,6 +325,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--bending", type=float, nargs="+", default=None,
                     help="bending amplitudes (mm): the bending table instead of a campaign")
+    ap.add_argument("--resolver", type=_resolver_case, nargs="+", default=None,
+                    metavar="BIAS:NOISE",
+                    help="resolver bias and noise (deg) per case: the resolver table instead "
+                    "of a campaign (a scanning-platform scenario; --runs runs per case)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--save", type=Path, default=None, help="write each run's series here")
     ap.add_argument("--summarize", type=Path, nargs="+", default=None, metavar="DIR",
@@ -279,6 +346,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         if args.bending is not None:
             lines = bending_table(doc, args.bending, Path(tmp), args.duration)
+        elif args.resolver is not None:
+            lines = resolver_table(doc, args.resolver, args.runs, Path(tmp), args.duration,
+                                   args.seed)  # fmt: skip
         else:
             # realistic errors the filter models: the IMU's modelled terms, the master's white
             # noise; no bending (a deterministic motion the filter does not model)
@@ -296,6 +366,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                          args.save))
     took = time.perf_counter() - start
     what = "bending table" if args.bending is not None else (
+        f"resolver table, {args.runs} runs per case" if args.resolver is not None else
         f"{args.runs} runs, {'straight flight' if args.straight else 'manoeuvre'}")  # fmt: skip
     print(f"{args.scenario.name}: {what}, {took:.0f} s")
     print("\n".join(lines))

@@ -5,7 +5,9 @@ filter's ``δR, δV, φ`` and gyro/accelerometer biases (the layout of
 :func:`strapdown_ros.core.aided.model.build_model`, its IMU white-noise PSDs and bias random
 walks, and its Gauss–Markov bias and scale-factor states when the slave's error model has those
 terms), then the mounting misalignment ``μ`` (3, Br axes, random constant or random walk) and
-optionally the lever-arm error ``δl`` (3, Br FRD, random constant).
+optionally the lever-arm error ``δl`` (3, Br FRD, random constant). On a scanning platform the
+matching measurements carry the resolver's ``Ĉ_scan`` and the displacement (:class:`Platform`,
+docs/transfer_alignment.md §5); μ stays the zero-scan mounting's error.
 
 The inertial part, the error dynamics, the Van Loan discretization and the Joseph update are
 the aided filter's own compiled functions (docs/theory/aided_ins.md §4, §6):
@@ -39,9 +41,30 @@ from strapdown_ros.core.aided.update import joseph_update, reset_attitude
 from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.navigation._kernels import GRAVITY_CODES, exact_kernel
 from strapdown_ros.core.rotations import dcm_from_rotvec, skew
-from strapdown_ros.core.transfer.measurements import attitude_matching, velocity_matching
+from strapdown_ros.core.transfer.measurements import (
+    attitude_matching,
+    displacement_transport,
+    platform_offset,
+    velocity_matching,
+)
 
-__all__ = ["TransferFilter", "TransferLayout", "UpdateResult"]
+__all__ = ["Platform", "TransferFilter", "TransferLayout", "UpdateResult"]
+
+
+@dataclass(frozen=True)
+class Platform:
+    """A scanning platform around a velocity-matching epoch m (docs/transfer_alignment.md §5).
+
+    ``c_prev``, ``c_next``: the master's ``C_Br^E0`` at m−1, m+1 (as for ``D``); ``scan_prev``,
+    ``scan_next``: ``Ĉ_scan`` from the resolver at the slave's cycles m−1, m+1; ``displacement``
+    ``d`` (m, Bvar FRD, on the platform).
+    """
+
+    c_prev: F64
+    c_next: F64
+    scan_prev: F64
+    scan_next: F64
+    displacement: F64
 
 
 @dataclass(frozen=True)
@@ -215,15 +238,34 @@ class TransferFilter:
         reset_attitude(self.p, np.ascontiguousarray(dx[6:9]))
         _reset_block(self.p, lay.i_mu, dmu)
 
-    def update_velocity(self, v_master: F64, d: F64, r: F64, gate: float = np.inf) -> UpdateResult:
-        """Velocity matching: master inertial velocity (E0), ``D`` (3, 3), R (3, 3)."""
+    def update_velocity(self, v_master: F64, d: F64, r: F64, gate: float = np.inf,
+                        platform: Platform | None = None) -> UpdateResult:  # fmt: skip
+        """Velocity matching: master inertial velocity (E0), ``D`` (3, 3), R (3, 3).
+
+        ``platform``: a scanning platform's displacement carried with the current ``M̂``
+        (docs/transfer_alignment.md §5); None: a fixed mount without displacement.
+        """
         lay = self.layout
-        nu, h = velocity_matching(self.nav[3:6], v_master, d, self.lever, lay.n, 3, lay.i_l)
+        extra = None
+        if platform is not None:
+            w_prev = platform_offset(self.mount, platform.scan_prev, platform.displacement)
+            w_next = platform_offset(self.mount, platform.scan_next, platform.displacement)
+            e, h_mu = displacement_transport(platform.c_prev, platform.c_next, w_prev, w_next,
+                                             self.T)  # fmt: skip
+            extra = (e, h_mu, lay.i_mu)
+        nu, h = velocity_matching(self.nav[3:6], v_master, d, self.lever, lay.n, 3, lay.i_l,
+                                  extra)  # fmt: skip
         return self._apply(nu, h, r, gate)
 
-    def update_attitude(self, c_master: F64, r: F64, gate: float = np.inf) -> UpdateResult:
-        """Attitude matching: master ``C_Br^E0``, R (3, 3) of the rotation-vector noise (E0)."""
+    def update_attitude(self, c_master: F64, r: F64, gate: float = np.inf,
+                        scan: F64 | None = None) -> UpdateResult:  # fmt: skip
+        """Attitude matching: master ``C_Br^E0``, R (3, 3) of the rotation-vector noise (E0).
+
+        ``scan``: the platform's ``Ĉ_scan`` from the resolver (the nominal ``C_Bs^Br`` is then
+        ``M̂ Ĉ_scan``; ``H_μ = −C_r`` holds).
+        """
         lay = self.layout
-        nu, h = attitude_matching(self.nav[6:15].reshape(3, 3), c_master, self.mount, lay.n, 6,
+        nominal = self.mount if scan is None else self.mount @ np.asarray(scan)
+        nu, h = attitude_matching(self.nav[6:15].reshape(3, 3), c_master, nominal, lay.n, 6,
                                   lay.i_mu)  # fmt: skip
         return self._apply(nu, h, r, gate)
