@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Mapping
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -18,6 +17,7 @@ import numpy as np
 from pydantic import BeforeValidator, Field, field_validator, model_validator
 
 from strapdown_ros.config.base import (
+    Core,
     Finite,
     Model,
     NonNegative,
@@ -28,6 +28,7 @@ from strapdown_ros.config.base import (
     StrictInt,
     Vector3,
     check_frame_id,
+    core_values,
     finite_number,
     require_correlation_times,
     shorten,
@@ -117,26 +118,11 @@ def _frame(value: Any) -> Any:
 FrameId = Annotated[str | None, BeforeValidator(_frame)]
 
 
-@dataclass(frozen=True)
-class _Core:
-    """What an error key is to the sensor's core error model: its parameter ``name``, the key's
-    value times ``factor`` (from the unit the key's name says to SI)."""
-
-    name: str
-    factor: float = 1.0
-
-    def convert(self, value: float | tuple[Any, ...]) -> float | np.ndarray:
-        """``value`` (a number, axes or a matrix) in SI units (axes and matrices as arrays)."""
-        if isinstance(value, tuple):
-            return np.array(value, dtype=np.float64) * self.factor
-        return value * self.factor
-
-
 class _Sensor(PresetModel):
     """Keys every sensor has; ``GM_TERMS``: the ``(sigma_key, tau_key)`` of its Gauss-Markov
     error terms (a σ > 0 needs its correlation time); ``ERROR_MODEL``: ``(module, class)`` of
     its core error model in :mod:`strapdown_ros.core.aiding`, whose parameters the keys
-    annotated with :class:`_Core` set."""
+    annotated with :class:`~strapdown_ros.config.base.Core` set."""
 
     GM_TERMS: ClassVar[tuple[tuple[str, str], ...]] = ()
     ERROR_MODEL: ClassVar[tuple[str, str]]
@@ -166,19 +152,15 @@ class _Sensor(PresetModel):
         return int(round(1e9 / self.rate_hz))
 
     def errors(self) -> Any:
-        """The core model's parameters (SI units): each key annotated with :class:`_Core` that
-        is set (by the preset or the sensor's mapping), converted; the model's defaults (no
-        error; correlation times 1 s; identity soft iron) for the others."""
+        """The core model's parameters (SI units; vectors and matrices as arrays): the keys
+        annotated with :class:`Core` that are set (by the preset or the sensor's mapping); the
+        model's defaults (no error; correlation times 1 s; identity soft iron) for the others."""
         module, name = self.ERROR_MODEL
         # Imported here: the core models load scipy.signal.
         model = getattr(importlib.import_module(f"strapdown_ros.core.aiding.{module}"), name)
-        values = {}
-        for key, info in type(self).model_fields.items():
-            core = next((m for m in info.metadata if isinstance(m, _Core)), None)
-            value = getattr(self, key)
-            if core is not None and value is not None:
-                values[core.name] = core.convert(value)
-        return model(**values)
+        values = core_values(self)
+        return model(**{k: np.array(v, dtype=np.float64) if isinstance(v, tuple) else v
+                        for k, v in values.items()})  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------
@@ -260,14 +242,14 @@ class GnssSpec(_Sensor):
         default_factory=lambda: ["gps"], min_length=1
     )
     frame_id: FrameId = "gnss"
-    position_white_m: Annotated[AxesNonNeg, _Core("position_white")] = None
-    position_gm_sigma_m: Annotated[AxesNonNeg, _Core("position_gm_sigma")] = None
-    position_gm_tau_s: Annotated[AxesPositive, _Core("position_gm_tau_s")] = None
-    position_offset_m: Annotated[AxesAny, _Core("position_offset")] = None
-    velocity_white_mps: Annotated[AxesNonNeg, _Core("velocity_white")] = None
-    velocity_gm_sigma_mps: Annotated[AxesNonNeg, _Core("velocity_gm_sigma")] = None
-    velocity_gm_tau_s: Annotated[AxesPositive, _Core("velocity_gm_tau_s")] = None
-    velocity_offset_mps: Annotated[AxesAny, _Core("velocity_offset")] = None
+    position_white_m: Annotated[AxesNonNeg, Core("position_white")] = None
+    position_gm_sigma_m: Annotated[AxesNonNeg, Core("position_gm_sigma")] = None
+    position_gm_tau_s: Annotated[AxesPositive, Core("position_gm_tau_s")] = None
+    position_offset_m: Annotated[AxesAny, Core("position_offset")] = None
+    velocity_white_mps: Annotated[AxesNonNeg, Core("velocity_white")] = None
+    velocity_gm_sigma_mps: Annotated[AxesNonNeg, Core("velocity_gm_sigma")] = None
+    velocity_gm_tau_s: Annotated[AxesPositive, Core("velocity_gm_tau_s")] = None
+    velocity_offset_mps: Annotated[AxesAny, Core("velocity_offset")] = None
 
     @property
     def status_code(self) -> int:
@@ -325,12 +307,12 @@ class BarometerSpec(_Sensor):
     lever_arm_m: Vector3 = (0.0, 0.0, 0.0)
     preset: Literal["mems", "precision"] | None = None
     frame_id: FrameId = "baro"
-    bias_pa: Annotated[Finite | None, _Core("bias")] = None
-    turn_on_bias_sigma_pa: Annotated[NonNegative | None, _Core("turn_on_bias_sigma")] = None
-    drift_sigma_pa: Annotated[NonNegative | None, _Core("drift_sigma")] = None
-    drift_correlation_time_s: Annotated[Positive | None, _Core("drift_tau_s")] = None
-    noise_sigma_pa: Annotated[NonNegative | None, _Core("white")] = None
-    quantum_pa: Annotated[NonNegative | None, _Core("quantum")] = None
+    bias_pa: Annotated[Finite | None, Core("bias")] = None
+    turn_on_bias_sigma_pa: Annotated[NonNegative | None, Core("turn_on_bias_sigma")] = None
+    drift_sigma_pa: Annotated[NonNegative | None, Core("drift_sigma")] = None
+    drift_correlation_time_s: Annotated[Positive | None, Core("drift_tau_s")] = None
+    noise_sigma_pa: Annotated[NonNegative | None, Core("white")] = None
+    quantum_pa: Annotated[NonNegative | None, Core("quantum")] = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -364,10 +346,10 @@ class MagnetometerSpec(_Sensor):
     model: Literal["igrf14"] = "igrf14"
     decimal_year: Annotated[float, Field(ge=IGRF_YEARS[0], le=IGRF_YEARS[1])] | None = None
     frame_id: FrameId = None
-    hard_iron_ut: Annotated[AxesAny, _Core("hard_iron", 1e-6)] = None
-    hard_iron_sigma_ut: Annotated[AxesNonNeg, _Core("hard_iron_sigma", 1e-6)] = None
-    soft_iron: Annotated[Matrix, _Core("soft_iron")] = None
-    noise_sigma_ut: Annotated[AxesNonNeg, _Core("white", 1e-6)] = None
+    hard_iron_ut: Annotated[AxesAny, Core("hard_iron", 1e-6)] = None
+    hard_iron_sigma_ut: Annotated[AxesNonNeg, Core("hard_iron_sigma", 1e-6)] = None
+    soft_iron: Annotated[Matrix, Core("soft_iron")] = None
+    noise_sigma_ut: Annotated[AxesNonNeg, Core("white", 1e-6)] = None
 
     @field_validator("decimal_year", mode="before")
     @classmethod
@@ -422,10 +404,10 @@ class WheelOdometerSpec(_Sensor):
     preset: Literal["abs_sensor", "encoder"] | None = None
     frame_id: FrameId = "wheel"
     nhc_sigma_mps: Positive = 0.05
-    scale_factor_ppm: Annotated[Finite | None, _Core("scale_factor", 1e-6)] = None
-    scale_factor_sigma_ppm: Annotated[NonNegative | None, _Core("scale_factor_sigma", 1e-6)] = None
-    noise_sigma_mps: Annotated[NonNegative | None, _Core("white")] = None
-    pulses_per_m: Annotated[NonNegative | None, _Core("pulses_per_m")] = None
+    scale_factor_ppm: Annotated[Finite | None, Core("scale_factor", 1e-6)] = None
+    scale_factor_sigma_ppm: Annotated[NonNegative | None, Core("scale_factor_sigma", 1e-6)] = None
+    noise_sigma_mps: Annotated[NonNegative | None, Core("white")] = None
+    pulses_per_m: Annotated[NonNegative | None, Core("pulses_per_m")] = None
 
 
 # ---------------------------------------------------------------------------------------------
