@@ -7,7 +7,7 @@ Odometry → geodetic latitude, longitude, altitude, NED velocity and ``C_B^N`` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -16,11 +16,11 @@ from numpy.typing import NDArray
 from strapdown_ros.bag.reader import read_bag
 from strapdown_ros.core.array_types import F64, I64
 from strapdown_ros.core.earth import dcm_ecef_to_ned, ecef_to_geodetic, geodetic_rates
+from strapdown_ros.core.trajectory.base import LocalTruth
 from strapdown_ros.core.young_nonlinear import FrameTrack
-from strapdown_ros.messages import imu_increments, odometry_state
+from strapdown_ros.messages import ImuIncrements, imu_increments, odometry_state
 
 __all__ = [
-    "ImuRecord",
     "LocalLevelStates",
     "NavigatorRecord",
     "local_level_states",
@@ -30,20 +30,11 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class LocalLevelStates:
-    """States in local-level terms at stamps ``stamps_ns``.
-
-    ``t`` (s since the record's start), geodetic ``lat``, ``lon`` (rad), ``alt`` (m),
-    ``v_ned`` (m/s, Earth-relative), ``c_b_n`` (body FRD to NED), ``q_b_e`` not kept.
-    """
+class LocalLevelStates(LocalTruth):
+    """States in local-level terms (:class:`LocalTruth`, ``t`` in s since the record's start) at
+    stamps ``stamps_ns``."""
 
     stamps_ns: I64
-    t: F64
-    lat: F64
-    lon: F64
-    alt: F64
-    v_ned: F64
-    c_b_n: F64
 
     def track(self) -> FrameTrack:
         """The local-level frame's path (rates ``geodetic_rates`` of the velocity)."""
@@ -52,19 +43,7 @@ class LocalLevelStates:
 
     def rows(self, index: NDArray[np.intp]) -> LocalLevelStates:
         """The states at rows ``index``."""
-        return LocalLevelStates(*(a[index] for a in (
-            self.stamps_ns, self.t, self.lat, self.lon, self.alt, self.v_ned, self.c_b_n
-        )))  # fmt: skip
-
-
-@dataclass(frozen=True)
-class ImuRecord:
-    """Imu messages as increments: cycle end stamps, period, Δα and Δv (body FRD)."""
-
-    stamps_ns: I64
-    period_ns: int
-    dalpha: F64
-    dv: F64
+        return LocalLevelStates(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
 
 @dataclass(frozen=True)
@@ -81,7 +60,7 @@ class NavigatorRecord:
         The published Young angles (rad) at the navigator's output stamps.
     truth_index : array (K,)
         Row of ``truth`` at each navigator output.
-    imu : ImuRecord or None
+    imu : ImuIncrements or None
         An IMU topic read with the run (e.g. the ideal input of the IMU error model).
     """
 
@@ -89,7 +68,7 @@ class NavigatorRecord:
     navigator: LocalLevelStates
     theta_actual: F64
     truth_index: NDArray[np.intp]
-    imu: ImuRecord | None = None
+    imu: ImuIncrements | None = None
 
     @property
     def t(self) -> F64:
@@ -102,14 +81,15 @@ def local_level_states(odom: object, t0_ns: int) -> LocalLevelStates:
     state = odometry_state(odom)  # type: ignore[arg-type]
     lat, lon, alt = ecef_to_geodetic(state.r_e)
     c_e_n = dcm_ecef_to_ned(lat, lon)
+    stamps_ns = np.asarray(state.stamps_ns, dtype=np.int64)
     return LocalLevelStates(
-        np.asarray(state.stamps_ns, dtype=np.int64),
-        (np.asarray(state.stamps_ns, dtype=np.int64) - t0_ns) * 1e-9,
-        lat,
-        lon,
-        alt,
-        np.einsum("nij,nj->ni", c_e_n, state.v_e),
-        c_e_n @ state.c_b_e,
+        t=(stamps_ns - t0_ns) * 1e-9,
+        lat=lat,
+        lon=lon,
+        alt=alt,
+        v_ned=np.einsum("nij,nj->ni", c_e_n, state.v_e),
+        c_b_n=c_e_n @ state.c_b_e,
+        stamps_ns=stamps_ns,
     )
 
 
@@ -145,7 +125,6 @@ def read_navigator_record(
         raise ValueError(f"{bag}: {error_topic} stamps differ from {navigator_topic}'s")
     imu = None
     if imu_topic:
-        inc = imu_increments(contents[imu_topic])  # type: ignore[arg-type]
-        imu = ImuRecord(np.asarray(inc.stamps_ns), int(inc.period_ns), inc.dalpha, inc.dv)
+        imu = imu_increments(contents[imu_topic])  # type: ignore[arg-type]
     theta = np.asarray(err.vector, dtype=np.float64)  # type: ignore[attr-defined]
     return NavigatorRecord(truth, nav, theta, index, imu)

@@ -8,14 +8,16 @@ model (:mod:`strapdown_ros.core.aiding`). Keys, models and presets: docs/aiding.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Mapping
 from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BeforeValidator, Field, field_validator, model_validator
 
 from strapdown_ros.config.base import (
+    Core,
     Finite,
     Model,
     NonNegative,
@@ -26,16 +28,11 @@ from strapdown_ros.config.base import (
     StrictInt,
     Vector3,
     check_frame_id,
+    core_values,
     finite_number,
     require_correlation_times,
     shorten,
 )
-
-if TYPE_CHECKING:  # imported by errors(): the core models load scipy.signal
-    from strapdown_ros.core.aiding.baro import BaroErrors
-    from strapdown_ros.core.aiding.gnss import GnssErrors
-    from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
-    from strapdown_ros.core.aiding.odometer import OdometerErrors
 
 __all__ = [
     "AIDING_TOPICS",
@@ -121,15 +118,14 @@ def _frame(value: Any) -> Any:
 FrameId = Annotated[str | None, BeforeValidator(_frame)]
 
 
-def _arr(value: Axes | None, default: float = 0.0) -> np.ndarray:
-    return np.full(3, default) if value is None else np.array(value, dtype=np.float64)
-
-
 class _Sensor(PresetModel):
     """Keys every sensor has; ``GM_TERMS``: the ``(sigma_key, tau_key)`` of its Gauss-Markov
-    error terms (a σ > 0 needs its correlation time)."""
+    error terms (a σ > 0 needs its correlation time); ``ERROR_MODEL``: ``(module, class)`` of
+    its core error model in :mod:`strapdown_ros.core.aiding`, whose parameters the keys
+    annotated with :class:`~strapdown_ros.config.base.Core` set."""
 
     GM_TERMS: ClassVar[tuple[tuple[str, str], ...]] = ()
+    ERROR_MODEL: ClassVar[tuple[str, str]]
 
     enabled: StrictBool = True
     rate_hz: Rate
@@ -154,6 +150,17 @@ class _Sensor(PresetModel):
     def period_ns(self) -> int:
         """Epoch period P (ns)."""
         return int(round(1e9 / self.rate_hz))
+
+    def errors(self) -> Any:
+        """The core model's parameters (SI units; vectors and matrices as arrays): the keys
+        annotated with :class:`Core` that are set (by the preset or the sensor's mapping); the
+        model's defaults (no error; correlation times 1 s; identity soft iron) for the others."""
+        module, name = self.ERROR_MODEL
+        # Imported here: the core models load scipy.signal.
+        model = getattr(importlib.import_module(f"strapdown_ros.core.aiding.{module}"), name)
+        values = core_values(self)
+        return model(**{k: np.array(v, dtype=np.float64) if isinstance(v, tuple) else v
+                        for k, v in values.items()})  # fmt: skip
 
 
 # ---------------------------------------------------------------------------------------------
@@ -219,6 +226,7 @@ class GnssSpec(_Sensor):
     """
 
     PRESETS = GNSS_PRESETS
+    ERROR_MODEL = ("gnss", "GnssErrors")
     GM_TERMS = (
         ("position_gm_sigma_m", "position_gm_tau_s"),
         ("velocity_gm_sigma_mps", "velocity_gm_tau_s"),
@@ -234,29 +242,14 @@ class GnssSpec(_Sensor):
         default_factory=lambda: ["gps"], min_length=1
     )
     frame_id: FrameId = "gnss"
-    position_white_m: AxesNonNeg = None
-    position_gm_sigma_m: AxesNonNeg = None
-    position_gm_tau_s: AxesPositive = None
-    position_offset_m: AxesAny = None
-    velocity_white_mps: AxesNonNeg = None
-    velocity_gm_sigma_mps: AxesNonNeg = None
-    velocity_gm_tau_s: AxesPositive = None
-    velocity_offset_mps: AxesAny = None
-
-    def errors(self) -> GnssErrors:
-        """The core model's parameters (SI, NED)."""
-        from strapdown_ros.core.aiding.gnss import GnssErrors
-
-        return GnssErrors(
-            position_white=_arr(self.position_white_m),
-            position_gm_sigma=_arr(self.position_gm_sigma_m),
-            position_gm_tau_s=_arr(self.position_gm_tau_s, 1.0),
-            position_offset=_arr(self.position_offset_m),
-            velocity_white=_arr(self.velocity_white_mps),
-            velocity_gm_sigma=_arr(self.velocity_gm_sigma_mps),
-            velocity_gm_tau_s=_arr(self.velocity_gm_tau_s, 1.0),
-            velocity_offset=_arr(self.velocity_offset_mps),
-        )
+    position_white_m: Annotated[AxesNonNeg, Core("position_white")] = None
+    position_gm_sigma_m: Annotated[AxesNonNeg, Core("position_gm_sigma")] = None
+    position_gm_tau_s: Annotated[AxesPositive, Core("position_gm_tau_s")] = None
+    position_offset_m: Annotated[AxesAny, Core("position_offset")] = None
+    velocity_white_mps: Annotated[AxesNonNeg, Core("velocity_white")] = None
+    velocity_gm_sigma_mps: Annotated[AxesNonNeg, Core("velocity_gm_sigma")] = None
+    velocity_gm_tau_s: Annotated[AxesPositive, Core("velocity_gm_tau_s")] = None
+    velocity_offset_mps: Annotated[AxesAny, Core("velocity_offset")] = None
 
     @property
     def status_code(self) -> int:
@@ -307,31 +300,19 @@ class BarometerSpec(_Sensor):
     """``aiding.barometer``: static pressure (FluidPressure) at the sensor's altitude."""
 
     PRESETS = BAROMETER_PRESETS
+    ERROR_MODEL = ("baro", "BaroErrors")
     GM_TERMS = (("drift_sigma_pa", "drift_correlation_time_s"),)
 
     rate_hz: Rate = 25.0
     lever_arm_m: Vector3 = (0.0, 0.0, 0.0)
     preset: Literal["mems", "precision"] | None = None
     frame_id: FrameId = "baro"
-    bias_pa: Finite | None = None
-    turn_on_bias_sigma_pa: NonNegative | None = None
-    drift_sigma_pa: NonNegative | None = None
-    drift_correlation_time_s: Positive | None = None
-    noise_sigma_pa: NonNegative | None = None
-    quantum_pa: NonNegative | None = None
-
-    def errors(self) -> BaroErrors:
-        """The core model's parameters (Pa, s)."""
-        from strapdown_ros.core.aiding.baro import BaroErrors
-
-        return BaroErrors(
-            bias=self.bias_pa or 0.0,
-            turn_on_bias_sigma=self.turn_on_bias_sigma_pa or 0.0,
-            drift_sigma=self.drift_sigma_pa or 0.0,
-            drift_tau_s=self.drift_correlation_time_s or 1.0,
-            white=self.noise_sigma_pa or 0.0,
-            quantum=self.quantum_pa or 0.0,
-        )
+    bias_pa: Annotated[Finite | None, Core("bias")] = None
+    turn_on_bias_sigma_pa: Annotated[NonNegative | None, Core("turn_on_bias_sigma")] = None
+    drift_sigma_pa: Annotated[NonNegative | None, Core("drift_sigma")] = None
+    drift_correlation_time_s: Annotated[Positive | None, Core("drift_tau_s")] = None
+    noise_sigma_pa: Annotated[NonNegative | None, Core("white")] = None
+    quantum_pa: Annotated[NonNegative | None, Core("quantum")] = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -358,32 +339,22 @@ class MagnetometerSpec(_Sensor):
     """
 
     PRESETS = MAGNETOMETER_PRESETS
+    ERROR_MODEL = ("magnetometer", "MagnetometerErrors")
 
     rate_hz: Rate = 50.0
     preset: Literal["mems", "fluxgate"] | None = None
     model: Literal["igrf14"] = "igrf14"
     decimal_year: Annotated[float, Field(ge=IGRF_YEARS[0], le=IGRF_YEARS[1])] | None = None
     frame_id: FrameId = None
-    hard_iron_ut: AxesAny = None
-    hard_iron_sigma_ut: AxesNonNeg = None
-    soft_iron: Matrix = None
-    noise_sigma_ut: AxesNonNeg = None
+    hard_iron_ut: Annotated[AxesAny, Core("hard_iron", 1e-6)] = None
+    hard_iron_sigma_ut: Annotated[AxesNonNeg, Core("hard_iron_sigma", 1e-6)] = None
+    soft_iron: Annotated[Matrix, Core("soft_iron")] = None
+    noise_sigma_ut: Annotated[AxesNonNeg, Core("white", 1e-6)] = None
 
     @field_validator("decimal_year", mode="before")
     @classmethod
     def _year(cls, value: Any) -> Any:
         return None if value is None else finite_number(value)
-
-    def errors(self) -> MagnetometerErrors:
-        """The core model's parameters (tesla, FRD)."""
-        from strapdown_ros.core.aiding.magnetometer import MagnetometerErrors
-
-        return MagnetometerErrors(
-            hard_iron=_arr(self.hard_iron_ut) * 1e-6,
-            hard_iron_sigma=_arr(self.hard_iron_sigma_ut) * 1e-6,
-            soft_iron=np.eye(3) if self.soft_iron is None else np.array(self.soft_iron),
-            white=_arr(self.noise_sigma_ut) * 1e-6,
-        )
 
     def year(self, start_time_ns: int) -> float:
         """Decimal year the field model is evaluated at."""
@@ -426,27 +397,17 @@ class WheelOdometerSpec(_Sensor):
     """
 
     PRESETS = WHEEL_ODOMETER_PRESETS
+    ERROR_MODEL = ("odometer", "OdometerErrors")
 
     rate_hz: Rate = 50.0
     lever_arm_m: Vector3 = (0.0, 0.0, 0.0)
     preset: Literal["abs_sensor", "encoder"] | None = None
     frame_id: FrameId = "wheel"
     nhc_sigma_mps: Positive = 0.05
-    scale_factor_ppm: Finite | None = None
-    scale_factor_sigma_ppm: NonNegative | None = None
-    noise_sigma_mps: NonNegative | None = None
-    pulses_per_m: NonNegative | None = None
-
-    def errors(self) -> OdometerErrors:
-        """The core model's parameters (dimensionless, m/s, pulses/m)."""
-        from strapdown_ros.core.aiding.odometer import OdometerErrors
-
-        return OdometerErrors(
-            scale_factor=(self.scale_factor_ppm or 0.0) * 1e-6,
-            scale_factor_sigma=(self.scale_factor_sigma_ppm or 0.0) * 1e-6,
-            white=self.noise_sigma_mps or 0.0,
-            pulses_per_m=self.pulses_per_m or 0.0,
-        )
+    scale_factor_ppm: Annotated[Finite | None, Core("scale_factor", 1e-6)] = None
+    scale_factor_sigma_ppm: Annotated[NonNegative | None, Core("scale_factor_sigma", 1e-6)] = None
+    noise_sigma_mps: Annotated[NonNegative | None, Core("white")] = None
+    pulses_per_m: Annotated[NonNegative | None, Core("pulses_per_m")] = None
 
 
 # ---------------------------------------------------------------------------------------------

@@ -15,7 +15,8 @@ import difflib
 import math
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar, Literal, Union
 
 import numpy as np
@@ -30,6 +31,7 @@ from pydantic import (
 )
 
 __all__ = [
+    "Core",
     "Finite",
     "Model",
     "NonNegative",
@@ -42,6 +44,8 @@ __all__ = [
     "Vector3",
     "check_frame_id",
     "check_topic_name",
+    "core_keys",
+    "core_values",
     "enabled_section",
     "error_from_validation",
     "finite_number",
@@ -264,6 +268,47 @@ def require_correlation_times(spec: Model, pairs: tuple[tuple[str, str], ...]) -
         sigma = getattr(spec, sigma_key)
         if sigma is not None and max(np.atleast_1d(sigma)) > 0 and getattr(spec, tau_key) is None:
             raise ScenarioError(tau_key, f"is required when {sigma_key} is > 0")
+
+
+@dataclass(frozen=True)
+class Core:
+    """What a scenario key is to the core object its section builds (``Annotated`` metadata of
+    the key): the core parameter ``name`` it sets, to the key's value times ``factor`` (from the
+    unit the key's name says to SI; a vector or matrix element by element)."""
+
+    name: str
+    factor: float = 1.0
+
+    def convert(self, value: Any) -> Any:
+        """``value`` in SI units (``factor`` 1: ``value`` itself)."""
+        if self.factor == 1.0:
+            return value
+        if isinstance(value, tuple):
+            return tuple(self.convert(v) for v in value)
+        return value * self.factor
+
+
+def _core_fields(spec: type[BaseModel]) -> Iterator[tuple[str, Core]]:
+    for key, info in spec.model_fields.items():
+        for meta in info.metadata:
+            if isinstance(meta, Core):
+                yield key, meta
+
+
+def core_values(spec: BaseModel) -> dict[str, Any]:
+    """The core parameters the keys of ``spec`` set (:class:`Core`), by name, in SI units: the
+    keys that are not None (the others leave the core object's defaults)."""
+    values = {}
+    for key, core in _core_fields(type(spec)):
+        value = getattr(spec, key)
+        if value is not None:
+            values[core.name] = core.convert(value)
+    return values
+
+
+def core_keys(spec: type[BaseModel]) -> dict[str, str]:
+    """The scenario key of each core parameter the keys of model ``spec`` set (:class:`Core`)."""
+    return {core.name: key for key, core in _core_fields(spec)}
 
 
 class PresetModel(Model):

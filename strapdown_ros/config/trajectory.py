@@ -21,12 +21,15 @@ import numpy as np
 from pydantic import BeforeValidator, Field, PlainValidator, field_validator, model_validator
 
 from strapdown_ros.config.base import (
+    Core,
     Finite,
     Model,
     NonNegative,
     Positive,
     ScenarioError,
     Vector3,
+    core_keys,
+    core_values,
     finite_number,
     join_key,
     shorten,
@@ -78,6 +81,8 @@ KINDS = ("segments", "samples", "increments", "coning")
 #: straight flight: about 2 GB and half a minute); a longer path is refused before any of it.
 MAX_DURATION_S = 1.0e7
 FITS = ("position", "attitude")
+#: rad per degree: ``math.radians(x)`` is ``x * _DEG`` (CPython multiplies by pi/180).
+_DEG = math.pi / 180.0
 
 
 def _not_null(value: Any) -> Any:
@@ -148,19 +153,6 @@ def _initial_key(where: tuple[str | int, ...]) -> str | None:
 # segments
 
 
-#: :class:`~strapdown_ros.core.trajectory.segments.Segment` attribute -> scenario key.
-SEGMENT_KEYS: dict[str, str] = {
-    "duration": "duration_s",
-    "roll_rate": "roll_rate_dps",
-    "pitch_rate": "pitch_rate_dps",
-    "heading_rate": "heading_rate_dps",
-    "accel": "accel_mps2",
-    "climb_rate": "climb_rate_mps",
-    "accel_ned": "accel_ned_mps2",
-    "transition": "transition_s",
-}
-
-
 class SegmentSpec(Model):
     """One maneuver segment (``trajectory.segments[i]`` of kind ``segments``).
 
@@ -168,14 +160,15 @@ class SegmentSpec(Model):
     rate up (m/s) or a NED acceleration (m/s²) instead of the two, blend length (s).
     """
 
-    duration_s: Positive
-    roll_rate_dps: Finite = 0.0
-    pitch_rate_dps: Finite = 0.0
-    heading_rate_dps: Finite = 0.0
-    accel_mps2: Finite | None = None
-    climb_rate_mps: Finite | None = None
-    accel_ned_mps2: Vector3 | None = None
-    transition_s: NonNegative | None = None  # default min(1, duration_s / 2)
+    duration_s: Annotated[Positive, Core("duration")]
+    roll_rate_dps: Annotated[Finite, Core("roll_rate", _DEG)] = 0.0
+    pitch_rate_dps: Annotated[Finite, Core("pitch_rate", _DEG)] = 0.0
+    heading_rate_dps: Annotated[Finite, Core("heading_rate", _DEG)] = 0.0
+    accel_mps2: Annotated[Finite | None, Core("accel")] = None
+    climb_rate_mps: Annotated[Finite | None, Core("climb_rate")] = None
+    accel_ned_mps2: Annotated[Vector3 | None, Core("accel_ned")] = None
+    # default min(1, duration_s / 2)
+    transition_s: Annotated[NonNegative | None, Core("transition")] = None
 
     _null = field_validator(
         "accel_mps2", "climb_rate_mps", "accel_ned_mps2", "transition_s", mode="before"
@@ -198,22 +191,13 @@ class SegmentSpec(Model):
 
     def core_segment(self) -> Segment:
         """The segment in SI units (rad/s)."""
-        return Segment(
-            duration=self.duration_s,
-            roll_rate=math.radians(self.roll_rate_dps),
-            pitch_rate=math.radians(self.pitch_rate_dps),
-            heading_rate=math.radians(self.heading_rate_dps),
-            accel=self.accel_mps2,
-            climb_rate=self.climb_rate_mps,
-            accel_ned=self.accel_ned_mps2,
-            transition=self.transition_s,
-        )
+        return Segment(**core_values(self))
 
 
 class SegmentsTrajectorySpec(_SegmentList):
     """``kind: segments``: maneuver segments in navigation terms from ``initial``."""
 
-    CORE_KEYS = SEGMENT_KEYS
+    CORE_KEYS = core_keys(SegmentSpec)
 
     kind: Literal["segments"]
     segments: list[SegmentSpec]

@@ -20,6 +20,8 @@ conversions; the ellipsoid formulas are the standard ones (e.g. Savage, *Strapdo
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -47,6 +49,7 @@ __all__ = [
     "ecef_velocity_from_ned",
     "geodetic_rates",
     "geodetic_to_ecef",
+    "latitude_newton_step",
     "meridian_radius",
     "ned_velocity_from_ecef",
     "radii",
@@ -154,6 +157,23 @@ def _geodetic_to_ecef(
     return r.astype(np.float64)
 
 
+def latitude_newton_step(lat: Any, s: Any, c: Any, p: Any, z: Any, a: Any, e2: Any) -> Any:
+    """One Newton step for the geodetic latitude φ of an ECEF point (:func:`ecef_to_geodetic`).
+
+    The root of ``f(φ) = p sin φ - z cos φ - e² R_E(φ) sin φ cos φ`` from ``lat`` (rad; ``s``,
+    ``c`` its sine and cosine), for the point's distance ``p`` from the polar axis and ``z``
+    (m), an ellipsoid of semi-major axis ``a`` (m) and first eccentricity squared ``e2``. Plain
+    arithmetic on scalars or arrays of any float type, so that the aided filter's compiled
+    scalar conversion (``core.aided._fields``) takes the very same steps in float64.
+    """
+    w2 = 1.0 - e2 * s * s
+    n = a / np.sqrt(w2)
+    f = p * s - z * c - e2 * n * s * c
+    # d/dφ [R_E sin φ cos φ] = R_E [(cos²φ - sin²φ) + e² sin²φ cos²φ / (1 - e² sin²φ)]
+    df = p * c + z * s - e2 * n * ((c - s) * (c + s) + e2 * (s * c) ** 2 / w2)
+    return lat - f / df
+
+
 def ecef_to_geodetic(
     r: ArrayLike,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -198,13 +218,7 @@ def ecef_to_geodetic(
         ct = np.where(d > 0, w / d, 1)
     lat = np.arctan2(z + _EP2_LD * _B_LD * st**3, p - _E2_LD * _A_LD * ct**3)
     for _ in range(_NEWTON_STEPS):
-        s, c = np.sin(lat), np.cos(lat)
-        w2 = 1 - _E2_LD * s * s
-        n = _A_LD / np.sqrt(w2)
-        f = p * s - z * c - _E2_LD * n * s * c
-        # d/dφ [R_E sin φ cos φ] = R_E [(cos²φ - sin²φ) + e² sin²φ cos²φ / (1 - e² sin²φ)]
-        df = p * c + z * s - _E2_LD * n * ((c - s) * (c + s) + _E2_LD * (s * c) ** 2 / w2)
-        lat = lat - f / df
+        lat = latitude_newton_step(lat, np.sin(lat), np.cos(lat), p, z, _A_LD, _E2_LD)
     lat = np.clip(lat, -_HALF_PI_LD, _HALF_PI_LD)
     s, c = np.sin(lat), np.cos(lat)
     alt = p * c + z * s - _A_LD * np.sqrt(1 - _E2_LD * s * s)

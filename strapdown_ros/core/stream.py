@@ -9,7 +9,7 @@ messages
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -94,3 +94,15 @@ class Stream:
     def stamps_ns(self) -> NDArray[np.int64]:
         """Stamps t_m (ns since the epoch), m = 0..M."""
         return self.t0_ns + np.arange(self.cycles + 1, dtype=np.int64) * self.period_ns
+
+    def window(self, m0: int, m1: int) -> Stream:
+        """Cycles ``m0..m1`` (truth m0..m1, increments m0+1..m1), restamped at m0 (same E0)."""
+        return replace(
+            self,
+            t0_ns=self.t0_ns + m0 * self.period_ns,
+            dalpha=self.dalpha[m0:m1],
+            dv=self.dv[m0:m1],
+            c_b_e0=self.c_b_e0[m0 : m1 + 1],
+            v_e0=self.v_e0[m0 : m1 + 1],
+            r_e0=self.r_e0[m0 : m1 + 1],
+        )

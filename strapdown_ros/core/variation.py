@@ -30,7 +30,7 @@ Conventions of this implementation (documented in ``docs/variation.md``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -239,33 +239,13 @@ def generate_variation(
     else:
         dalpha, dv, v = _method1(ref, con, cycles, cycle_gravity, g_ref)
         c, r = con.c_b_e0, con.r_e0
-    return Stream(
-        t0_ns=ref.t0_ns,
-        period_ns=reference.period_ns,
-        dalpha=dalpha,
-        dv=dv,
-        c_b_e0=c,
-        v_e0=v,
-        r_e0=r,
-        gravity_model=model,
-        e0_epoch_ns=reference.e0_epoch_ns,
-    )
+    # The reference window's timing, E0 and gravitation model; the variation's motion.
+    return replace(ref, dalpha=dalpha, dv=dv, c_b_e0=c, v_e0=v, r_e0=r)
 
 
 def _window(stream: Stream, start: int, samples: int) -> Stream:
     """Truth samples start..start+samples-1 and the increments between them."""
-    stop = start + samples - 1
-    return Stream(
-        t0_ns=stream.t0_ns + start * stream.period_ns,
-        period_ns=stream.period_ns,
-        dalpha=stream.dalpha[start:stop],
-        dv=stream.dv[start:stop],
-        c_b_e0=stream.c_b_e0[start : stop + 1],
-        v_e0=stream.v_e0[start : stop + 1],
-        r_e0=stream.r_e0[start : stop + 1],
-        gravity_model=stream.gravity_model,
-        e0_epoch_ns=stream.e0_epoch_ns,
-    )
+    return stream.window(start, start + samples - 1)
 
 
 def _method1(

@@ -92,10 +92,23 @@ def _scenario(required: bool = True, what: str = "") -> tuple[tuple[str, object,
     )  # fmt: skip
 
 
-#: What every batched-input node (nodes/_batched.py) declares: its QoS and batching ...
-_BATCHED_QOS: tuple[tuple[str, object, str], ...] = (
+#: Parameters several nodes declare alike: the publishers' QoS, ...
+_PUBLISHER_QOS: tuple[tuple[str, object, str], ...] = (
     ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
     ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
+)
+#: ... the subscriptions to wait for, per topic, ...
+_SUBSCRIBERS_PER_TOPIC = (
+    "subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"
+)
+#: ... how long to wait for them ...
+_WAIT_TIMEOUT = ("wait_timeout_s", 10.0, "seconds to wait")
+#: ... and the executor.
+_EXECUTOR = ("executor", "events", "rclpy executor: events | single_threaded")
+
+#: What every batched-input node (nodes/_batched.py) declares: its QoS and batching ...
+_BATCHED_QOS: tuple[tuple[str, object, str], ...] = (
+    *_PUBLISHER_QOS,
     (
         "batch_period_s",
         0.01,
@@ -108,15 +121,15 @@ _BATCHED_QOS: tuple[tuple[str, object, str], ...] = (
 _BATCHED_TAIL: tuple[tuple[str, object, str], ...] = (
     ("idle_timeout_s", 5.0, "with exit_when_done: exit after this long without input"),
     ("wait_for_subscribers", 0, "output subscriptions to wait for before subscribing"),
-    ("wait_timeout_s", 10.0, "seconds to wait"),
-    ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
+    _WAIT_TIMEOUT,
+    _SUBSCRIBERS_PER_TOPIC,
     (
         "report_progress",
         False,
         "publish the input taken / output published per topic for flow control "
         "(nodes/flow.py)",
     ),
-    ("executor", "events", "rclpy executor: events | single_threaded"),
+    _EXECUTOR,
 )
 
 #: Every parameter each node declares: (name, default, description), in declaration order.
@@ -134,16 +147,15 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
         ("odom_topic", "/reference/odom", "topic (default recording.topics.reference_odom)"),
         ("fix_topic", "/reference/fix", "topic (default recording.topics.reference_fix)"),
         ("clock_topic", "/clock", "topic (default recording.topics.clock)"),
-        ("qos_reliability", "reliable", "publisher reliability: reliable | best_effort"),
-        ("qos_depth", 1000, "publisher history depth (KEEP_LAST)"),
+        *_PUBLISHER_QOS,
         ("wait_for_subscribers", 0, "subscriptions to wait for before publishing"),
-        ("subscribers_per_topic", [""], "TOPIC=COUNT: subscriptions to wait for on that topic"),
+        _SUBSCRIBERS_PER_TOPIC,
         ("wait_for_all_topics", True, "wait on every published topic, not only the IMU"),
-        ("wait_timeout_s", 10.0, "seconds to wait"),
+        _WAIT_TIMEOUT,
         ("exit_when_done", True, "exit after the last"),
         ("flow_nodes", [""], "flow control: nodes whose progress reports pace the publishing"),
         ("flow_window", 1000, "flow control: messages a consumer may lag"),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        _EXECUTOR,
     ),
     "variation_node": (
         *_scenario(),
@@ -265,7 +277,7 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
             False,
             "publish the messages recorded per topic for flow control (nodes/flow.py)",
         ),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        _EXECUTOR,
     ),
     "bag_player": (
         ("bag", "", "bag directory to play (required)"),
@@ -282,11 +294,11 @@ PARAMETERS: dict[str, tuple[tuple[str, object, str], ...]] = {
          "0: never"),
         ("qos_depth", 1000, "publisher history depth"),
         ("wait_for_subscribers", 0, "subscriptions to wait for on every topic"),
-        ("wait_timeout_s", 10.0, "seconds to wait"),
+        _WAIT_TIMEOUT,
         ("drain_timeout_s", 10.0, "at the end, longest wait for acknowledgements"),
         ("read_ahead", 20000, "messages buffered ahead of the publisher"),
         ("realtime_priority", 0, "SCHED_FIFO priority of the publishing thread; 0: off"),
-        ("executor", "events", "rclpy executor: events | single_threaded"),
+        _EXECUTOR,
     ),
 }
 

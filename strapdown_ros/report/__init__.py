@@ -13,12 +13,14 @@ from __future__ import annotations
 import os
 import re
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import yaml
 
+from strapdown_ros.bag.reader import BagContents
 from strapdown_ros.report.aided import AidedResult
 from strapdown_ros.report.data import (
     BagData,
@@ -33,6 +35,8 @@ from strapdown_ros.report.solutions import Solution
 from strapdown_ros.report.transfer import TransferResult
 
 __all__ = ["PLOT_FILES", "ReportError", "ReportResult", "method_of", "write_report"]
+
+T = TypeVar("T")
 
 #: Plot files the report can write (``*`` : a suffix for a second navigator / measured IMU /
 #: comparison). Old files matching these names are removed before a report is written.
@@ -380,6 +384,30 @@ def _free_inertial_sections(data: BagData, solutions: list[Solution], result: Re
     return out
 
 
+def _filter_outputs(
+    data: BagData,
+    prefixes: list[str],
+    root: str,
+    load: Callable[[BagContents, str, int], T | str],
+    result: ReportResult,
+    none: str,
+) -> Iterator[tuple[str, str, T]]:
+    """``(prefix, suffix, loaded)`` of each filter output prefix of a section whose own prefix is
+    ``root`` (e.g. ``/aided``): ``loaded`` is what ``load(contents, prefix, start_ns)`` reads,
+    ``suffix`` the plot names' (empty for ``root``). Omitted (``result.omitted``): the section
+    (``none``, the reason) when there is no prefix, a prefix whose ``load`` returns a reason."""
+    key = root.strip("/")
+    if not prefixes:
+        result.omitted[key] = none
+    for prefix in prefixes:
+        suffix = "" if prefix == root else "_" + _slug(prefix)
+        loaded = load(data.contents, prefix, data.start_ns)
+        if isinstance(loaded, str):
+            result.omitted[f"{key}{suffix}"] = loaded
+            continue
+        yield prefix, suffix, loaded
+
+
 def _aided_sections(data: BagData, aided: list[str], result: ReportResult,
                     draw) -> list[str]:  # noqa: ANN001  # fmt: skip
     """Errors with ±3σ, NEES and NIS of each aided filter, recomputed from the bag."""
@@ -391,17 +419,8 @@ def _aided_sections(data: BagData, aided: list[str], result: ReportResult,
     )
 
     out: list[str] = []
-    if not aided:
-        result.omitted["aided"] = (
-            "no aided filter outputs (`P/odom` + `P/nees`, the `aided` section's `/aided/*`)"
-        )
-        return out
-    for prefix in aided:
-        suffix = "" if prefix == "/aided" else "_" + _slug(prefix)
-        a = aided_data(data.contents, prefix, data.start_ns)
-        if isinstance(a, str):
-            result.omitted[f"aided{suffix}"] = a
-            continue
+    none = "no aided filter outputs (`P/odom` + `P/nees`, the `aided` section's `/aided/*`)"
+    for prefix, suffix, a in _filter_outputs(data, aided, "/aided", aided_data, result, none):
         result.aided[prefix] = a
         out += ["", f"## Aided filter `{prefix}`", ""] + aided_table(a)
         if not a.t.size:
@@ -424,18 +443,10 @@ def _transfer_sections(data: BagData, transfer: list[str], result: ReportResult,
     from strapdown_ros.report.transfer import plot_transfer_mounting, transfer_data, transfer_table
 
     out: list[str] = []
-    if not transfer:
-        result.omitted["transfer"] = (
-            "no transfer-alignment outputs (`P/odom` + `P/mounting/estimate`, the "
-            "`transfer_alignment` section's `/transfer/*`)"
-        )
-        return out
-    for prefix in transfer:
-        suffix = "" if prefix == "/transfer" else "_" + _slug(prefix)
-        r = transfer_data(data.contents, prefix, data.start_ns)
-        if isinstance(r, str):
-            result.omitted[f"transfer{suffix}"] = r
-            continue
+    none = ("no transfer-alignment outputs (`P/odom` + `P/mounting/estimate`, the "
+            "`transfer_alignment` section's `/transfer/*`)")  # fmt: skip
+    for prefix, suffix, r in _filter_outputs(data, transfer, "/transfer", transfer_data, result,
+                                             none):  # fmt: skip
         result.transfer[prefix] = r
         out += ["", f"## Transfer alignment `{prefix}`", "", "### The slave INS", ""]
         out += aided_table(r.slave)

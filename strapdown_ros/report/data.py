@@ -20,6 +20,7 @@ from __future__ import annotations
 import datetime as _dt
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import yaml
@@ -66,10 +67,25 @@ class ReportError(RuntimeError):
 
 
 @dataclass
-class StreamData:
-    """Truth or navigation solution of one prefix (from Odometry, else NavSatFix)."""
+class _Prefixed:
+    """Data under a topic prefix ``P`` (``P/...`` topics); :attr:`label` names them in tables and
+    legends."""
+
+    #: The label of the root prefix (``/``).
+    ROOT_LABEL: ClassVar[str] = "root"
 
     prefix: str
+
+    @property
+    def label(self) -> str:
+        """The prefix without its slashes (``variation/reference``), or :attr:`ROOT_LABEL`."""
+        return self.prefix.strip("/") or self.ROOT_LABEL
+
+
+@dataclass
+class StreamData(_Prefixed):
+    """Truth or navigation solution of one prefix (from Odometry, else NavSatFix)."""
+
     source: str  #: the topic the data come from
     t: F64  #: (N,) s since the bag start
     lat: F64  #: (N,) rad
@@ -79,10 +95,6 @@ class StreamData:
     r_e: F64 | None = None  #: (N, 3) ECEF position, m (Odometry only)
     v_ned: F64 | None = None  #: (N, 3) m/s (Odometry only)
     rph: F64 | None = None  #: (N, 3) roll, pitch, heading of FRD w.r.t. NED, rad (Odometry only)
-
-    @property
-    def label(self) -> str:
-        return self.prefix.strip("/") or "root"
 
 
 @dataclass
@@ -132,17 +144,14 @@ class MeasuredImu:
 
 
 @dataclass
-class ErrorSet:
+class ErrorSet(_Prefixed):
     """Navigator errors under one prefix (each (t, (N, 3)) or None)."""
 
-    prefix: str
+    ROOT_LABEL = "errors"
+
     position: tuple[F64, F64] | None = None  #: NED, m
     velocity: tuple[F64, F64] | None = None  #: NED, m/s
     attitude: tuple[F64, F64] | None = None  #: Young θ1, θ2, θ3 (up, east, north), rad
-
-    @property
-    def label(self) -> str:
-        return self.prefix.strip("/") or "errors"
 
 
 @dataclass

@@ -336,10 +336,10 @@ class AidedStage:
         sensors = sc.aiding.sensors() if sc.aiding is not None else {}
         used = {SENSOR_SOURCE[s] for s in self.sensors}
         sm = SensorModels(
-            gnss=sensors["gnss"].errors() if "gnss" in used else None,  # type: ignore[attr-defined]
-            baro=sensors["barometer"].errors() if "barometer" in used else None,  # type: ignore[attr-defined]
-            mag=sensors["magnetometer"].errors() if "magnetometer" in used else None,  # type: ignore[attr-defined]
-            wheel=sensors["wheel_odometer"].errors() if "wheel_odometer" in used else None,  # type: ignore[attr-defined]
+            gnss=sensors["gnss"].errors() if "gnss" in used else None,
+            baro=sensors["barometer"].errors() if "barometer" in used else None,
+            mag=sensors["magnetometer"].errors() if "magnetometer" in used else None,
+            wheel=sensors["wheel_odometer"].errors() if "wheel_odometer" in used else None,
             wheel_period_s=(sensors["wheel_odometer"].period_ns * 1e-9
                             if "wheel_odometer" in used else 0.0),
         )  # fmt: skip

@@ -43,7 +43,6 @@ __all__ = [
     "concatenate_streams",
     "generate_reference",
     "generate_reference_chunks",
-    "slice_stream",
     "smooth_displacement",
 ]
 
@@ -159,7 +158,7 @@ def generate_reference_chunks(
             raise ScenarioError(spec.key_of(exc.where), exc.problem) from None
         full = decimate(_truncate(full, out_cycles * oversample), oversample)
         for m0, m1 in _chunk_bounds(out_cycles, chunk_cycles, first_cycles):
-            yield slice_stream(full, m0, m1)
+            yield full.window(m0, m1)
         return
 
     period = gen_period_ns * 1e-9
@@ -210,19 +209,6 @@ def generate_reference_chunks(
             yield pending.popleft().result()
 
 
-def slice_stream(stream: Stream, m0: int, m1: int) -> Stream:
-    """Cycles ``m0..m1`` of a stream (truth m0..m1, increments m0+1..m1), restamped at m0."""
-    return replace(
-        stream,
-        t0_ns=stream.t0_ns + m0 * stream.period_ns,
-        dalpha=stream.dalpha[m0:m1],
-        dv=stream.dv[m0:m1],
-        c_b_e0=stream.c_b_e0[m0 : m1 + 1],
-        v_e0=stream.v_e0[m0 : m1 + 1],
-        r_e0=stream.r_e0[m0 : m1 + 1],
-    )
-
-
 def concatenate_streams(pieces: Iterable[Stream]) -> Stream:
     """Join consecutive pieces of :func:`generate_reference_chunks` (shared samples once)."""
     pieces = list(pieces)
@@ -251,14 +237,7 @@ def _truncate(stream: Stream, cycles: int) -> Stream:
         raise ScenarioError(
             "duration_s", f"the increments segments cover only {stream.cycles} cycles"
         )
-    return replace(
-        stream,
-        dalpha=stream.dalpha[:cycles],
-        dv=stream.dv[:cycles],
-        c_b_e0=stream.c_b_e0[: cycles + 1],
-        v_e0=stream.v_e0[: cycles + 1],
-        r_e0=stream.r_e0[: cycles + 1],
-    )
+    return stream.window(0, cycles)
 
 
 def reference_batches(scenario: Scenario, stream: Stream) -> list[Batch]:

@@ -29,7 +29,13 @@ import numpy as np
 from strapdown_ros.core.aided._jit import jit
 from strapdown_ros.core.aiding import baro as _baro
 from strapdown_ros.core.aiding.magnetometer import longitude_multiples
-from strapdown_ros.core.earth import A_WGS84, B_WGS84, E2_WGS84, EP2_WGS84
+from strapdown_ros.core.earth import (
+    A_WGS84,
+    B_WGS84,
+    E2_WGS84,
+    EP2_WGS84,
+    latitude_newton_step,
+)
 from strapdown_ros.core.navigation._kernels import _gravitation
 
 __all__ = [
@@ -42,6 +48,7 @@ __all__ = [
 
 _H_B, _BETA, _T_B, _P_B = (np.ascontiguousarray(a, dtype=np.float64) for a in _baro._BASES)
 _G0, _R_AIR, _R0 = _baro.G0, _baro.R_AIR, _baro.R0_M
+_latitude_newton_step = jit(latitude_newton_step)
 
 
 @jit
@@ -54,12 +61,7 @@ def ecef_to_geodetic1(x, y, z):
     st, ct = (u / d, w / d) if d > 0 else (0.0, 1.0)
     lat = math.atan2(z + EP2_WGS84 * B_WGS84 * st**3, p - E2_WGS84 * A_WGS84 * ct**3)
     for _ in range(2):
-        s, c = math.sin(lat), math.cos(lat)
-        w2 = 1.0 - E2_WGS84 * s * s
-        n = A_WGS84 / math.sqrt(w2)
-        f = p * s - z * c - E2_WGS84 * n * s * c
-        df = p * c + z * s - E2_WGS84 * n * ((c - s) * (c + s) + E2_WGS84 * (s * c) ** 2 / w2)
-        lat = lat - f / df
+        lat = _latitude_newton_step(lat, math.sin(lat), math.cos(lat), p, z, A_WGS84, E2_WGS84)
     s, c = math.sin(lat), math.cos(lat)
     alt = p * c + z * s - A_WGS84 * math.sqrt(1.0 - E2_WGS84 * s * s)
     return lat, lon, alt

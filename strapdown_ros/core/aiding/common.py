@@ -9,6 +9,9 @@ in pieces of any size gives the same bits as processing them at once. See ``docs
 from __future__ import annotations
 
 import math
+from dataclasses import field
+from functools import partial
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -23,6 +26,7 @@ __all__ = [
     "epoch_mask",
     "mat_t_vec",
     "mat_vec",
+    "per_axis",
     "rate_cross_lever",
     "sensor_rng",
 ]
@@ -31,6 +35,11 @@ __all__ = [
 #: Spawn key of each sensor's random stream: the same ``seed`` on two sensors gives
 #: independent noise.
 SENSOR_STREAMS = {"gnss": 1, "baro": 2, "magnetometer": 3, "wheel_odometer": 4}
+
+
+def per_axis(fill: float = 0.0) -> Any:
+    """A dataclass field of one value per axis: a (3,) float64 array, ``fill`` by default."""
+    return field(default_factory=partial(np.full, 3, fill))
 
 
 def sensor_rng(seed: int, sensor: str) -> np.random.Generator:

@@ -8,8 +8,7 @@ white noise, for position (m) and velocity (m/s). Equations and presets: ``docs/
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import partial
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -19,6 +18,7 @@ from strapdown_ros.core.aiding.common import (
     check_period,
     mat_t_vec,
     mat_vec,
+    per_axis,
     rate_cross_lever,
     sensor_rng,
 )
@@ -47,14 +47,14 @@ class GnssErrors:
     ``*_offset`` constant offset. Position in m, velocity in m/s.
     """
 
-    position_white: F64 = field(default_factory=partial(np.zeros, 3))
-    position_gm_sigma: F64 = field(default_factory=partial(np.zeros, 3))
-    position_gm_tau_s: F64 = field(default_factory=partial(np.ones, 3))
-    position_offset: F64 = field(default_factory=partial(np.zeros, 3))
-    velocity_white: F64 = field(default_factory=partial(np.zeros, 3))
-    velocity_gm_sigma: F64 = field(default_factory=partial(np.zeros, 3))
-    velocity_gm_tau_s: F64 = field(default_factory=partial(np.ones, 3))
-    velocity_offset: F64 = field(default_factory=partial(np.zeros, 3))
+    position_white: F64 = per_axis()
+    position_gm_sigma: F64 = per_axis()
+    position_gm_tau_s: F64 = per_axis(1.0)
+    position_offset: F64 = per_axis()
+    velocity_white: F64 = per_axis()
+    velocity_gm_sigma: F64 = per_axis()
+    velocity_gm_tau_s: F64 = per_axis(1.0)
+    velocity_offset: F64 = per_axis()
 
     @property
     def position_variance(self) -> F64:

@@ -16,7 +16,13 @@ from functools import partial
 import numpy as np
 from numpy.typing import ArrayLike
 
-from strapdown_ros.core.aiding.common import check_period, mat_t_vec, mat_vec, sensor_rng
+from strapdown_ros.core.aiding.common import (
+    check_period,
+    mat_t_vec,
+    mat_vec,
+    per_axis,
+    sensor_rng,
+)
 from strapdown_ros.core.array_types import F64
 
 __all__ = [
@@ -165,10 +171,10 @@ class MagnetometerErrors:
     ``soft_iron`` the 3×3 matrix S (identity: none); ``white`` noise σ per axis (3,).
     """
 
-    hard_iron: F64 = field(default_factory=partial(np.zeros, 3))
-    hard_iron_sigma: F64 = field(default_factory=partial(np.zeros, 3))
+    hard_iron: F64 = per_axis()
+    hard_iron_sigma: F64 = per_axis()
     soft_iron: F64 = field(default_factory=partial(np.eye, 3))
-    white: F64 = field(default_factory=partial(np.zeros, 3))
+    white: F64 = per_axis()
 
     @property
     def variance(self) -> F64:
