@@ -72,7 +72,12 @@ TESTS: dict[str, list[str]] = {
         "test/test_aiding_common_mutants.py",
         "test/test_gnss_mutants.py",
     ],
-    "stages/tf.py": ["test/test_tf.py", "test/test_frames.py", "test/test_tf_mutants.py"],
+    "stages/tf.py": [
+        "test/test_tf.py",
+        "test/test_frames.py",
+        "test/test_tf_mutants.py",
+        "test/test_tf_live_paths.py",
+    ],
     "messages/imu.py": [
         "test/test_messages.py",
         "test/test_imu_orientation.py",
