@@ -251,6 +251,20 @@ def bending_table(doc: dict[str, Any], amplitudes_mm: Sequence[float], directory
     return lines
 
 
+def campaign_conditions(doc: dict[str, Any]) -> dict[str, Any]:
+    """The campaign's realistic errors, all of which the filter models: the slave IMU's modelled
+    terms, the master's white noise (velocity and attitude), the mounting error drawn per run,
+    no tuning; no bending (a deterministic motion the filter does not model). A new document."""
+    d = modelled_only(doc)
+    d["variation"].pop("bending", None)
+    ta = d["transfer_alignment"]
+    ta["mounting_error_deg"] = None
+    ta["master"] = {k: v for k, v in (ta.get("master") or {}).items()
+                    if k in ("velocity_noise_mps", "attitude_noise_deg")}  # fmt: skip
+    ta["tuning"] = {}
+    return d
+
+
 def _resolver_case(text: str) -> tuple[float, float]:
     """``BIAS:NOISE`` (deg) of ``--resolver``."""
     bias, _, noise = text.partition(":")
@@ -269,13 +283,7 @@ def resolver_table(doc: dict[str, Any], cases: Sequence[tuple[float, float]], ru
     (docs/transfer_alignment.md §5), shown beside; NEES over the epochs after 30 s against the
     95 % χ² interval of the run average.
     """
-    d = modelled_only(doc)
-    d["variation"].pop("bending", None)
-    ta = d["transfer_alignment"]
-    ta["mounting_error_deg"] = None
-    ta["master"] = {k: v for k, v in (ta.get("master") or {}).items()
-                    if k in ("velocity_noise_mps", "attitude_noise_deg")}  # fmt: skip
-    ta["tuning"] = {}
+    d = campaign_conditions(doc)
     lines = ["| resolver bias, noise (deg) | mean final mounting error x, y, z (µrad) | "
              "−b·(M a) x, y, z (µrad) | rms about it x, y, z (µrad) | final σ x, y, z (µrad) | "
              "mounting NEES: mean, inside | slave attitude NEES: mean, inside |",
@@ -350,15 +358,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             lines = resolver_table(doc, args.resolver, args.runs, Path(tmp), args.duration,
                                    args.seed)  # fmt: skip
         else:
-            # realistic errors the filter models: the IMU's modelled terms, the master's white
-            # noise; no bending (a deterministic motion the filter does not model)
-            doc = modelled_only(doc)
-            doc["variation"].pop("bending", None)
-            ta = doc["transfer_alignment"]
-            ta["mounting_error_deg"] = None
-            ta["master"] = {k: v for k, v in (ta.get("master") or {}).items()
-                            if k in ("velocity_noise_mps", "attitude_noise_deg")}  # fmt: skip
-            ta["tuning"] = {}
+            doc = campaign_conditions(doc)
             if args.straight:
                 total = sum(s["duration_s"] for s in doc["trajectory"]["segments"])
                 doc["trajectory"]["segments"] = [{"duration_s": total}]
