@@ -45,10 +45,6 @@ def _mv(m: F64, v: F64) -> F64:
     return np.einsum("...ij,...j->...i", m, v)
 
 
-def _t(m: F64) -> F64:
-    return np.swapaxes(m, -1, -2)
-
-
 def attitude_increments(c_b_e0: ArrayLike) -> F64:
     """Δα_m of Savage 2020 eq. (8): rotation vector of ``G_C = C_{m-1}ᵀ C_m``.
 
