@@ -18,7 +18,7 @@ filter's initial draw from P0. Printed:
 * per base seed (the runs' seeds as ``aided_check --seed S`` gives them,
   ``aided_montecarlo.seed_overrides``): the RMS over the 100 runs of the drawn initial heading
   error, hard iron along u and gyro z turn-on bias, each over its σ, and the reduced filter's
-  error RMS over its σ when driven by those draws (its white noises drawn here, seed 0);
+  error RMS over its σ when driven by those draws (its white noises drawn here, seeded by S);
 * over ``--sets`` base seeds (0..M−1): the spread of the heading draws' RMS over sets of 100;
 * with ``--dir SEED=DIR`` (the runs of ``aided_check --seed SEED --dir DIR``, read back): the
   filter's σ_θ1 of run 0 each minute, σ_ens/σ_pred of θ1 averaged over the epochs from 60 s
@@ -120,7 +120,6 @@ def main() -> int:
     print("reduced filter σ_ψ (rad) each minute: " + " ".join(f"{s:.6g}" for s in minutes))
 
     cen = dcm_ecef_to_ned(lat, lon)
-    rng = np.random.default_rng(0)
     chol = np.linalg.cholesky(qd + 1e-40 * np.eye(4))
     skip = int(round(SKIP_S / period))
 
@@ -141,6 +140,7 @@ def main() -> int:
         x = np.array(x0)
         draws[base] = x[:, 0]
         xh = np.zeros_like(x)
+        rng = np.random.default_rng(base)  # the reduced filter's white noises
         ratio = []
         for k in range(steps):
             x = x @ phi.T + rng.standard_normal(x.shape) @ chol.T
