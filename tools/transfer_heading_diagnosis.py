@@ -160,7 +160,9 @@ def regress(directories: list[str]) -> None:
     print(f"{len(runs)} runs: yaw σ {s0 * 1e3:.2f} -> {s1 * 1e3:.2f} mrad, rms error "
           f"{np.sqrt(np.mean(first**2)) * 1e3:.2f} -> "
           f"{np.sqrt(np.mean((first + change) ** 2)) * 1e3:.2f} mrad; slope of the change on "
-          f"the first error {slope:.3f}, claimed by σ {-(1 - s1**2 / s0**2):.3f}")
+          f"the first error {slope:.3f}, claimed by σ {-(1 - s1**2 / s0**2):.3f}; mounting "
+          f"NEES mean {np.mean([r.mounting_nees[0] for r in runs]):.3f} at the first epoch, "
+          f"{np.mean([r.mounting_nees[-1] for r in runs]):.3f} at the last")
 
 
 if __name__ == "__main__":
