@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from strapdown_ros.config import ScenarioError, load_scenario
-from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_rotvec, skew
+from strapdown_ros.core.rotations import dcm_from_euler, dcm_from_rotvec, rotvec_from_dcm, skew
 from strapdown_ros.core.transfer.measurements import (
     attitude_matching,
     transport_matrix,
@@ -51,6 +51,78 @@ def test_attitude_matching_innovation_is_minus_h_times_the_error():
         # second-order residual: |φ||μ| ~ 1e-10
         assert np.max(np.abs(nu + h @ dx)) < 1e-9
         assert np.max(np.abs(nu)) > 1e-6  # the test is not trivial
+
+
+def test_attitude_jacobian_at_the_estimate_is_dh_and_leaves_the_common_turn_unseen():
+    """``H_μ = −ĥ``, ``ĥ = Ĉ_s M̂ᵀ``: h's derivative at the estimate (left perturbations of ĥ),
+    and the common turn ``(φ, μ) = (u, ĥᵀ u)`` is in H's nullspace; the measured master
+    attitude's ``H_μ = −C̃_r`` turns it by the master's noise (docs/transfer_alignment.md §6)."""
+    rng = _rng()
+    c_r = dcm_from_euler(0.3, -0.2, 2.0)
+    mount = dcm_from_euler(0.02, -0.01, 1.5)
+    n, i_phi, i_mu = 15, 6, 12
+    for _ in range(5):
+        c_hat = dcm_from_rotvec(rng.normal(0, 0.02, 3)) @ c_r @ mount  # 1-deg errors
+        m_hat = dcm_from_rotvec(rng.normal(0, 0.02, 3)) @ mount
+        c_meas = c_r @ dcm_from_rotvec(rng.normal(0, 1e-4, 3))  # the master's noise
+        _, h = attitude_matching(c_hat, c_meas, m_hat, n, i_phi, i_mu, at_estimate=True)
+        _, h_meas = attitude_matching(c_hat, c_meas, m_hat, n, i_phi, i_mu)
+        h_hat = c_hat @ m_hat.T
+        step = 1e-7
+        for k in range(3):  # columns of ∂h/∂x: rotvec(h(x̂ ⊞ δx) ĥᵀ) / step
+            e = np.eye(3)[k] * step
+            d_phi = rotvec_from_dcm(dcm_from_rotvec(e) @ c_hat @ m_hat.T @ h_hat.T) / step
+            d_mu = rotvec_from_dcm(c_hat @ (dcm_from_rotvec(e) @ m_hat).T @ h_hat.T) / step
+            np.testing.assert_allclose(d_phi, h[:, i_phi + k], rtol=0, atol=1e-8)
+            np.testing.assert_allclose(d_mu, h[:, i_mu + k], rtol=0, atol=1e-8)
+        for u in np.eye(3):
+            x = np.zeros(n)
+            x[i_phi : i_phi + 3], x[i_mu : i_mu + 3] = u, h_hat.T @ u
+            assert np.max(np.abs(h @ x)) < 1e-15
+            assert np.max(np.abs(h_meas @ x)) > 1e-5  # turned by ε and the estimate's ν̂
+
+
+@pytest.mark.slow  # compiles the update
+def test_the_measured_attitude_jacobian_invents_information_on_the_common_turn():
+    """Attitude matching alone, N updates of a master with white noise σ_ε (R = σ_ε² I), P0 as
+    the stage's (``φ = C_r μ`` plus the master's noise): slave and mounting turned together are
+    not observable, so μ's σ keeps its prior with ``attitude_jacobian: estimate``. With the
+    measured ``H_μ = −C̃_r`` each update takes ``C_r (ε × μ)`` for signal: E|ε × u|²/σ_ε² = 2
+    rad⁻² of information per update and axis, ``1/σ_N² = 1/σ_0² + 2N`` whatever σ_ε."""
+    import dataclasses
+
+    from strapdown_ros.core.aided.model import SensorModels, StateOptions, build_model
+    from strapdown_ros.core.imu_errors import ImuErrorParameters, SensorErrors
+    from strapdown_ros.core.transfer.filter import TransferFilter, TransferLayout
+
+    sensor = dataclasses.replace(SensorErrors.zero(), turn_on_bias_sigma=np.full(3, 1e-5))
+    model = build_model(ImuErrorParameters(sensor, sensor), 0.005, SensorModels(),
+                        StateOptions(None, None, False))  # fmt: skip
+    lay = TransferLayout(model, False)
+    c_r = dcm_from_euler(0.03, 0.035, 0.4)
+    mount = dcm_from_euler(0.02, -0.01, 1.5)
+    s_mu, s_eps, updates = np.radians(1.0), 1e-4, 1000
+    sig = np.full(lay.n, 1e-3)
+    sig[6:9], sig[lay.i_mu : lay.i_mu + 3] = s_eps, s_mu
+    a = np.eye(lay.n)
+    a[6:9, lay.i_mu : lay.i_mu + 3] = c_r
+    p0 = a @ np.diag(sig**2) @ a.T
+    out = {}
+    for kind in ("measurement", "estimate"):
+        rng = np.random.default_rng(5)
+        mu0 = rng.normal(0, s_mu, 3)
+        m_hat = dcm_from_rotvec(mu0) @ mount
+        c0 = c_r @ dcm_from_rotvec(rng.normal(0, s_eps, 3))
+        f = TransferFilter(lay, 5_000_000, "j2", np.array([6.4e6, 0.0, 0.0]), np.zeros(3),
+                           c0 @ m_hat, m_hat, np.zeros(3), p0.copy(),
+                           attitude_jacobian=kind)  # fmt: skip
+        for _ in range(updates):
+            f.update_attitude(c_r @ dcm_from_rotvec(rng.normal(0, s_eps, 3)),
+                              np.eye(3) * s_eps**2)  # fmt: skip
+        out[kind] = np.sqrt(np.diag(f.p)[lay.i_mu : lay.i_mu + 3])
+    assert np.all(out["estimate"] > 0.995 * s_mu)
+    closed = 1.0 / np.sqrt(1.0 / s_mu**2 + 2.0 * updates)  # 13.8 mrad of 17.5
+    np.testing.assert_allclose(out["measurement"], closed, rtol=0.05)
 
 
 def test_velocity_matching_is_linear_in_the_lever_arm_error():

@@ -127,6 +127,7 @@ class TransferAlignmentSpec(Model):
     initial_sigma_velocity_mps: NonNegative = 0.0
     seed: Annotated[StrictInt, Field(ge=0)] = 0
     gate_probability: Annotated[float, Field(gt=0.0, le=1.0, strict=True)] = 1.0
+    attitude_jacobian: Literal["measurement", "estimate"] = "measurement"
     master: MasterErrorSpec = Field(default_factory=MasterErrorSpec)
     resolver: ResolverSpec = Field(default_factory=ResolverSpec)
     tuning: TransferTuningSpec = Field(default_factory=TransferTuningSpec)

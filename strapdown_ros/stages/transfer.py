@@ -459,7 +459,7 @@ class TransferStage:
         q_mu = spec.tuning.mounting_random_walk**2
         self.filter = TransferFilter(lay, self.T, str(self.scenario.gravity_model), r0, v0,
                                      chat, self.mount_nominal, lever, 0.5 * (p0 + p0.T),
-                                     q_mu)  # fmt: skip
+                                     q_mu, spec.attitude_jacobian)  # fmt: skip
         self.info(f"transfer_alignment: slave INS starts at cycle 0 ({n} states)")
 
     def _resolver_p0(self, n: int, cr: tuple[F64, F64, F64], scans: list[F64]) -> F64:

@@ -11,6 +11,7 @@ master errors and the mounting error draw (``mounting_error_deg: null``) from
 Command line (docs/transfer_alignment.md)::
 
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --runs 50 [--straight] [--save DIR]
+        [--attitude-jacobian estimate]
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --summarize DIR [DIR ...]
     python -m strapdown_ros.stages.transfer_montecarlo SCENARIO --bending 0 1 2 5 10
     python -m strapdown_ros.stages.transfer_montecarlo SCAN_SCENARIO --resolver 0:0 0.1:0.01
@@ -338,6 +339,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="resolver bias and noise (deg) per case: the resolver table instead "
                     "of a campaign (a scanning-platform scenario; --runs runs per case)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--attitude-jacobian", choices=("measurement", "estimate"), default=None,
+                    help="set transfer_alignment.attitude_jacobian (docs/transfer_alignment.md §6)")
     ap.add_argument("--save", type=Path, default=None, help="write each run's series here")
     ap.add_argument("--summarize", type=Path, nargs="+", default=None, metavar="DIR",
                     help="only summarize the runs saved in these directories (pooled)")
@@ -350,6 +353,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("\n".join(summary(results)))
         return 0
     doc = yaml.safe_load(args.scenario.read_text())
+    if args.attitude_jacobian is not None:
+        doc["transfer_alignment"]["attitude_jacobian"] = args.attitude_jacobian
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         if args.bending is not None:

@@ -133,11 +133,16 @@ class TransferFilter:
     p0 : (n, n) array
     mounting_q : float
         PSD of the mounting random walk (rad²/s).
+    attitude_jacobian : str
+        ``measurement``: attitude matching's ``H_μ = −C̃_r`` (the measured master attitude);
+        ``estimate``: ``H_μ = −Ĉ_s M̂ᵀ``
+        (:func:`~strapdown_ros.core.transfer.measurements.attitude_jacobian_at_estimate`).
     """
 
     def __init__(self, layout: TransferLayout, period_ns: int, gravity_model: str, r0: F64,
                  v0: F64, c0: F64, mount0: F64, lever0: F64, p0: F64,
-                 mounting_q: float = 0.0) -> None:  # fmt: skip
+                 mounting_q: float = 0.0,
+                 attitude_jacobian: str = "measurement") -> None:  # fmt: skip
         self.layout = layout
         n = layout.n
         if p0.shape != (n, n):
@@ -162,6 +167,9 @@ class TransferFilter:
         self.bg = int(self.off[B_BG])
         self.ba = int(self.off[B_BA])
         self.m = 0
+        if attitude_jacobian not in ("measurement", "estimate"):
+            raise ValueError(f"unknown attitude_jacobian {attitude_jacobian!r}")
+        self.jacobian_at_estimate = attitude_jacobian == "estimate"
 
     def _corrected(self, raw: F64, bias: int, gm: int, sf: int) -> F64:
         """``(Δ̃ − (b̂ + m̂) T) / (1 + ŝ)`` (the aided filter's correction; absent blocks 0)."""
@@ -267,5 +275,5 @@ class TransferFilter:
         lay = self.layout
         nominal = self.mount if scan is None else self.mount @ np.asarray(scan)
         nu, h = attitude_matching(self.nav[6:15].reshape(3, 3), c_master, nominal, lay.n, 6,
-                                  lay.i_mu)  # fmt: skip
+                                  lay.i_mu, self.jacobian_at_estimate)  # fmt: skip
         return self._apply(nu, h, r, gate)

@@ -46,6 +46,7 @@ from strapdown_ros.core.array_types import F64
 from strapdown_ros.core.rotations import dcm_from_rotvec, rotvec_from_dcm, skew
 
 __all__ = [
+    "attitude_jacobian_at_estimate",
     "attitude_matching",
     "carried_position",
     "displacement_transport",
@@ -117,14 +118,38 @@ def velocity_matching(v_hat: F64, v_master: F64, d: F64, lever_hat: F64, n: int,
 
 
 def attitude_matching(c_hat: F64, c_master: F64, mount_hat: F64, n: int, i_phi: int,
-                      i_mu: int) -> tuple[F64, F64]:  # fmt: skip
-    """Innovation ``ν = rotvec(C_r M̂ Ĉ_sᵀ)`` (3,) and H (3, n) (``H_φ = I``, ``H_μ = −C_r``)."""
+                      i_mu: int, at_estimate: bool = False) -> tuple[F64, F64]:  # fmt: skip
+    """Innovation ``ν = rotvec(C_r M̂ Ĉ_sᵀ)`` (3,) and H (3, n) (``H_φ = I``, ``H_μ = −C_r``).
+
+    ``at_estimate``: ``H_μ = −ĥ``, ``ĥ = Ĉ_s M̂ᵀ`` the master attitude the estimate predicts,
+    instead of ``−C̃_r``, the measured one (:func:`attitude_jacobian_at_estimate`).
+    """
     c_master = np.asarray(c_master)
     nu = rotvec_from_dcm(c_master @ np.asarray(mount_hat) @ np.asarray(c_hat).T)
     h = np.zeros((3, n))
     h[:, i_phi : i_phi + 3] = np.eye(3)
-    h[:, i_mu : i_mu + 3] = -c_master
+    h[:, i_mu : i_mu + 3] = (-attitude_jacobian_at_estimate(c_hat, mount_hat) if at_estimate
+                             else -c_master)  # fmt: skip
     return np.asarray(nu, dtype=np.float64), h
+
+
+def attitude_jacobian_at_estimate(c_hat: F64, mount_hat: F64) -> F64:
+    """``ĥ = Ĉ_s M̂ᵀ`` (3, 3): attitude matching's ``−H_μ`` at the estimate (Br to E0).
+
+    The EKF's measurement Jacobian is ``∂h/∂x`` at the predicted state (Bar-Shalom, Li &
+    Kirubarajan 2001, *Estimation with Applications to Tracking and Navigation*, §10.3): with
+    ``h(x̂) = Ĉ_s M̂ᵀ`` and ``M̂ → exp([δμ×]) M̂``, ``h → ĥ exp(−[δμ×]) = exp(−[(ĥ δμ)×]) ĥ``, so
+    ``H_μ = −ĥ`` (``H_φ = I``). Then ``(φ, μ) = (u, ĥᵀ u)`` — slave and mounting turned together,
+    which no attitude measurement sees — is in H's nullspace at every epoch, as the
+    observability-constrained EKF asks of its Jacobians (Huang, Mourikis & Roumeliotis 2010,
+    "Observability-based rules for designing consistent EKF SLAM estimators", IJRR 29(5)).
+    ``H_μ = −C̃_r`` with the *measured* master attitude ``C̃_r = C_r exp([ε×])`` instead turns
+    that direction by the master's noise ε at every epoch: the filter takes ``C_r (ε × μ)`` for
+    signal (about 2 rad⁻² of information per epoch on each component of μ, whatever σ_ε), which
+    the measurement does not carry (docs/transfer_alignment.md §6). ``c_hat`` ``Ĉ_s`` (slave
+    body to E0), ``mount_hat`` the nominal ``C_Bs^Br`` (``M̂``, or ``M̂ Ĉ_scan`` on a platform).
+    """
+    return np.asarray(c_hat) @ np.asarray(mount_hat).T
 
 
 # -- the scanning platform -----------------------------------------------------------------------
